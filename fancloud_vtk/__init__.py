@@ -1,0 +1,22 @@
+"""fancloud-vtk: fan clouds (one small triangle fan per point) as VTK filters.
+
+The core (:mod:`fancloud_vtk.core`) works on numpy arrays; the VTK algorithms
+(:mod:`fancloud_vtk.algorithms`) wrap it for VTK pipelines and ParaView; the
+PyVista accessor ``dataset.fancloud`` and the ``fancloud`` command forward to
+those.
+"""
+
+from .core.fans import Cancelled, DuplicatePointsWarning, build_fans
+from .core.model import FanCloud, find_color_array
+from .core.validation import FanCloudInputError
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "Cancelled",
+    "DuplicatePointsWarning",
+    "FanCloud",
+    "FanCloudInputError",
+    "build_fans",
+    "find_color_array",
+]

@@ -1,0 +1,115 @@
+"""The PyVista accessor ``dataset.fancloud``.
+
+Registered through the ``pyvista.accessors`` entry point, so
+``pv.PolyData(points).fancloud.fans()`` works without importing
+``fancloud_vtk``. It holds no algorithm: each verb checks its keywords
+against the parameter table, runs the VTK algorithm and wraps a *new*
+dataset (the input is never modified; its point arrays are kept).
+"""
+
+from __future__ import annotations
+
+import inspect
+
+import pyvista as pv
+
+from fancloud_vtk.algorithms.base import run
+from fancloud_vtk.algorithms.convert import fancloud_from_vtk, is_fancloud
+from fancloud_vtk.algorithms.fans import FanCloudFilter
+from fancloud_vtk.params import FAN_PARAMS, Param, check_params
+
+
+def _run(algorithm, dataset, progress_bar: bool, message: str) -> pv.PolyData:
+    algorithm.SetInputDataObject(0, dataset)
+    if progress_bar:
+        from pyvista.core.utilities.observers import ProgressMonitor
+
+        with ProgressMonitor(algorithm, message=message):
+            output = run(algorithm)
+    else:
+        output = run(algorithm)
+    result = pv.PolyData()
+    result.ShallowCopy(output)
+    return result
+
+
+def _document(table: tuple[Param, ...]):
+    """Fill ``{params}`` in the docstring and set a signature from the table."""
+
+    def decorate(func):
+        lines = []
+        for p in table:
+            lines.append(f"{p.name} : {p.kind}, default: {p.default!r}")
+            lines.append(f"    {p.doc[0].upper()}{p.doc[1:]}.")
+        func.__doc__ = func.__doc__.replace("{params}", "\n        ".join(lines))
+        params = [inspect.Parameter("self", inspect.Parameter.POSITIONAL_OR_KEYWORD)]
+        params += [
+            inspect.Parameter(p.name, inspect.Parameter.KEYWORD_ONLY, default=p.default)
+            for p in table
+        ]
+        params.append(
+            inspect.Parameter("progress_bar", inspect.Parameter.KEYWORD_ONLY, default=False)
+        )
+        func.__signature__ = inspect.Signature(params, return_annotation="pv.PolyData")
+        return func
+
+    return decorate
+
+
+@pv.register_dataset_accessor("fancloud", pv.DataSet)
+class FanCloudAccessor:
+    """Fan cloud verbs on any PyVista dataset: ``dataset.fancloud.<verb>()``."""
+
+    def __init__(self, dataset):
+        self._dataset = dataset
+
+    @property
+    def is_fan_cloud(self) -> bool:
+        """True if the dataset carries a fan cloud (``fan_offsets``/``fan_ring`` arrays)."""
+        return is_fancloud(self._dataset)
+
+    def to_fancloud(self):
+        """The dataset's fan cloud as a :class:`fancloud_vtk.FanCloud` (arrays copied)."""
+        return fancloud_from_vtk(self._dataset)
+
+    @_document(FAN_PARAMS)
+    def fans(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
+        """Build the fan cloud of the dataset's points (paper section 3).
+
+        Only the points are used; every point array is kept, and a
+        ``Normals`` point array orients the fan normals.
+
+        Parameters
+        ----------
+        {params}
+        progress_bar : bool, default: False
+            Show a progress bar (needs ``tqdm``).
+
+        Returns
+        -------
+        pyvista.PolyData
+            A new dataset: the points, the distinct fan triangles, point arrays
+            ``Normals``, ``fan_open``, ``fan_rotated`` and the input's arrays,
+            field arrays ``fan_offsets`` and ``fan_ring``.
+
+        Raises
+        ------
+        TypeError, ValueError
+            For unknown or out-of-range parameters and for points that give no
+            fan cloud (NaN, fewer than k + 1 points, all collinear, ...).
+
+        See Also
+        --------
+        fancloud_vtk.build_fans : the same on numpy arrays.
+
+        Examples
+        --------
+        >>> import pyvista as pv
+        >>> cloud = pv.PolyData(pv.Sphere(theta_resolution=60, phi_resolution=60).points)
+        >>> fans = cloud.fancloud.fans(k=6)
+        >>> int(fans["fan_open"].sum())
+        0
+        >>> fans.plot(smooth_shading=True)  # doctest: +SKIP
+        """
+        values = check_params(FAN_PARAMS, params)
+        return _run(FanCloudFilter(**values), self._dataset, progress_bar, "Building fans")

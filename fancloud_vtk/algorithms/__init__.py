@@ -1,0 +1,18 @@
+"""VTK algorithms (``VTKPythonAlgorithmBase``) over the core.
+
+Imports numpy, ``vtkmodules`` and the core only, never pyvista, so ParaView
+5.11 (VTK 9.2) can load it.
+"""
+
+from .base import FanCloudAlgorithm, run
+from .convert import fancloud_from_vtk, fancloud_to_vtk, is_fancloud
+from .fans import FanCloudFilter
+
+__all__ = [
+    "FanCloudAlgorithm",
+    "FanCloudFilter",
+    "fancloud_from_vtk",
+    "fancloud_to_vtk",
+    "is_fancloud",
+    "run",
+]

@@ -1,0 +1,53 @@
+"""``FanCloudFilter``: points in, fan cloud ``vtkPolyData`` out (paper section 3)."""
+
+from __future__ import annotations
+
+from fancloud_vtk.core.fans import build_fans
+from fancloud_vtk.params import FAN_PARAMS
+
+from .base import FanCloudAlgorithm, with_parameters
+from .convert import NORMALS, fancloud_to_vtk, point_arrays, points_of
+
+
+@with_parameters(FAN_PARAMS)
+class FanCloudFilter(FanCloudAlgorithm):
+    """Build the fan cloud of any ``vtkPointSet``.
+
+    Only the points are used (cells are ignored); every point array passes
+    through. A ``Normals`` array on the input orients the fan normals. The
+    output is ``vtkPolyData``: the points, the distinct fan triangles as
+    polys, point arrays ``Normals``, ``fan_open``, ``fan_rotated`` and field
+    arrays ``fan_offsets``/``fan_ring`` (see docs/data_model.md).
+
+    Parameters are properties (``alg.k = 8``) and VTK-style methods
+    (``alg.SetK(8)``), listed in ``FanCloudFilter.PARAMETERS``.
+
+    Examples
+    --------
+    >>> from vtkmodules.vtkFiltersSources import vtkPointSource
+    >>> from vtkmodules.vtkFiltersCore import vtkPolyDataNormals
+    >>> from fancloud_vtk.algorithms import FanCloudFilter
+    >>> src = vtkPointSource()
+    >>> src.SetNumberOfPoints(2000)
+    >>> src.SetDistributionToShell()
+    >>> fans = FanCloudFilter(k=6)
+    >>> fans.SetInputConnection(src.GetOutputPort())
+    >>> normals = vtkPolyDataNormals()
+    >>> normals.SetInputConnection(fans.GetOutputPort())
+    >>> normals.Update()
+    1
+    """
+
+    def __init__(self, **params):
+        super().__init__(inputType="vtkPointSet", outputType="vtkPolyData", **params)
+
+    def execute(self, dataset):
+        points = points_of(dataset)
+        arrays = point_arrays(dataset)
+        normals = arrays.pop(NORMALS, None)
+        if normals is not None and (normals.ndim != 2 or normals.shape[1] != 3):
+            arrays[NORMALS] = normals
+            normals = None
+        fc = build_fans(points, normals=normals, point_data=arrays, progress=self._progress,
+                        **self._values)
+        return fancloud_to_vtk(fc)

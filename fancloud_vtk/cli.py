@@ -1,0 +1,155 @@
+"""The ``fancloud`` command: a front that reads, forwards and writes.
+
+``fancloud fans IN -o OUT.vtp [--k 6 ...]``
+    Build the fan cloud of a point cloud or mesh file.
+``fancloud demo [--out DIR]``
+    The main job on built-in data (the Stanford bunny shipped with pymeshlab).
+``fancloud bench fans [...]``
+    The benchmark of fan construction (see ``fancloud bench fans --help``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from fancloud_vtk.params import FAN_PARAMS, Param
+
+
+def _add_params(parser: argparse.ArgumentParser, table: tuple[Param, ...]) -> None:
+    """Options derived from a parameter table."""
+    for p in table:
+        if p.kind == "bool":
+            parser.add_argument(
+                p.cli_flag, dest=p.name, default=p.default,
+                action=argparse.BooleanOptionalAction, help=f"{p.doc} (default: {p.default})",
+            )
+        else:
+            kind = {"int": int, "float": float, "choice": str}[p.kind]
+            parser.add_argument(
+                p.cli_flag, dest=p.name, type=kind, default=p.default, choices=p.choices,
+                help=f"{p.doc} (default: {p.default})",
+            )
+
+
+def _params(args, table) -> dict:
+    return {p.name: getattr(args, p.name) for p in table}
+
+
+class _Progress:
+    """A tqdm bar driven by the core's progress callback (hidden when not a terminal)."""
+
+    def __init__(self, desc: str, quiet: bool):
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=100, desc=desc, disable=True if quiet else None, leave=False,
+                        bar_format="{l_bar}{bar}| {elapsed}")
+
+    def __call__(self, fraction: float, message: str) -> bool:
+        self.bar.set_description(message)
+        self.bar.n = round(100 * fraction)
+        self.bar.refresh()
+        return False
+
+    def close(self):
+        self.bar.close()
+
+
+def _build(points_file, params, quiet):
+    from fancloud_vtk.core.fans import build_fans
+
+    data = dict(points_file.point_data)
+    normals = data.pop("Normals", None)
+    progress = _Progress("fans", quiet)
+    try:
+        return build_fans(points_file.points, normals=normals, point_data=data,
+                          progress=progress, **params)
+    finally:
+        progress.close()
+
+
+def cmd_fans(args) -> int:
+    from fancloud_vtk.io import read_point_cloud
+
+    if not args.output.lower().endswith(".vtp"):
+        raise SystemExit(f"fancloud fans: the output must be a .vtp file, got {args.output}")
+    src = read_point_cloud(args.input)
+    t0 = time.perf_counter()
+    fc = _build(src, _params(args, FAN_PARAMS), args.quiet)
+    elapsed = time.perf_counter() - t0
+    fc.save(args.output)
+    if not args.quiet:
+        _print_summary(fc, elapsed, args.output)
+    return 0
+
+
+def _print_summary(fc, elapsed, path=None) -> None:
+    s = fc.summary()
+    rows = [
+        ("points", f"{s['points']:,}"),
+        ("fans closed", f"{s['fans_closed']:,}"),
+        ("fans open", f"{s['fans_open']:,} ({100 * s['fans_open'] / max(s['points'], 1):.2f}%)"),
+        ("fans in rotated plane", f"{s['fans_rotated']:,}"),
+        ("distinct triangles / point", f"{s['distinct_triangles_per_point']:.2f}"),
+        ("duplicates merged", f"{fc.info.get('duplicates_merged', 0):,}"),
+        ("time", f"{elapsed:.2f} s"),
+    ]
+    if path:
+        rows.append(("written", str(path)))
+    width = max(len(r[0]) for r in rows)
+    for name, value in rows:
+        print(f"{name:<{width}}  {value}")
+
+
+def cmd_demo(args) -> int:
+    from fancloud_vtk.demo import run_demo
+
+    run_demo(args.out, quiet=args.quiet)
+    return 0
+
+
+def cmd_bench(args) -> int:
+    from fancloud_vtk.bench import main as bench_main
+
+    return bench_main(args.bench_args)
+
+
+def make_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fancloud", description="Fan clouds: one triangle fan per point (VTK / PyVista)."
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("fans", help="build the fan cloud of a point cloud or mesh file")
+    p.add_argument("input", help="input file: .ply .obj .vtp .vtk .vtu .xyz .pts .txt .npy")
+    p.add_argument("-o", "--output", required=True, help="output fan cloud (.vtp)")
+    _add_params(p, FAN_PARAMS)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    p.set_defaults(func=cmd_fans)
+
+    p = sub.add_parser("demo", help="build, save and render the fan cloud of the bunny")
+    p.add_argument("--out", default="fancloud_demo", help="output folder (default: %(default)s)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("bench", help="benchmarks (fancloud bench fans --help)")
+    p.add_argument("bench_args", nargs=argparse.REMAINDER, help="benchmark and its options")
+    p.set_defaults(func=cmd_bench)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = make_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except (ValueError, TypeError, OSError) as exc:
+        print(f"fancloud {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,543 @@
+"""Numba kernels of fan construction (paper section 3).
+
+Everything here works on plain arrays; :mod:`fancloud_vtk.core.fans` drives it.
+
+Per point ``p`` the kernel receives a *candidate pool*: neighbour indices in
+order of increasing distance, the first ``k`` of which are the exact ``k``
+nearest neighbours. It then
+
+1. fits the least-squares plane through ``p`` and its ``k`` nearest
+   neighbours (smallest eigenvector of the 3x3 covariance),
+2. sorts the projections of the candidates by angle around ``p``,
+3. enforces the angle criterion (no gap between consecutive neighbours above
+   ``max_gap``) by neighbour replacement, with one of two rules:
+
+   * ``RULE_COVER`` (default): grow the pool one candidate at a time in order
+     of distance; as soon as the first ``m`` candidates contain a subset of at
+     most ``k`` directions without a gap above ``max_gap``, take the smallest
+     such subset (it contains candidate ``m``, found exactly by a greedy walk
+     around the circle that starts at it) and fill it up to ``k`` with the
+     nearest remaining candidates. So the farthest neighbour of the fan is as
+     near as any valid fan allows.
+   * ``RULE_PAPER``: the literal rule: replace the farthest of the ``k``
+     nearest by the ``(k+1)``-st, ``(k+2)``-nd, ... nearest neighbour.
+
+4. if that fails, rotates the plane by 90 degrees around the axis through the
+   projections of the two neighbours bounding the largest gap and tries again
+   (sharp edges, paper Figure 5),
+5. if that fails too, returns the ``k`` nearest neighbours as an open fan
+   whose gap (the largest) lies between the last and first ring entry.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+RULE_COVER = 0
+RULE_PAPER = 1
+
+STATUS_CLOSED = 0
+STATUS_ROTATED = 1
+STATUS_OPEN = 2
+STATUS_RETRY = 3  # pool exhausted without a valid fan: retry with the exact pool
+
+TWO_PI = 2.0 * np.pi
+
+
+@njit(cache=True)
+def _smallest_eigvec(a00, a01, a02, a11, a12, a22):
+    """Unit eigenvector of the smallest eigenvalue of a symmetric 3x3 matrix."""
+    # eigenvalues by the trigonometric method (Smith 1961)
+    q = (a00 + a11 + a22) / 3.0
+    p1 = a01 * a01 + a02 * a02 + a12 * a12
+    b00 = a00 - q
+    b11 = a11 - q
+    b22 = a22 - q
+    p2 = b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * p1
+    if p2 <= 1e-300:
+        return 0.0, 0.0, 1.0
+    pp = np.sqrt(p2 / 6.0)
+    det = (
+        b00 * (b11 * b22 - a12 * a12)
+        - a01 * (a01 * b22 - a12 * a02)
+        + a02 * (a01 * a12 - b11 * a02)
+    ) / (pp * pp * pp)
+    r = 0.5 * det
+    if r <= -1.0:
+        phi = np.pi / 3.0
+    elif r >= 1.0:
+        phi = 0.0
+    else:
+        phi = np.arccos(r) / 3.0
+    lam = q + 2.0 * pp * np.cos(phi + 2.0 * np.pi / 3.0)  # smallest
+    # rows of (A - lam I); the eigenvector is the largest cross product of two rows
+    r0x, r0y, r0z = a00 - lam, a01, a02
+    r1x, r1y, r1z = a01, a11 - lam, a12
+    r2x, r2y, r2z = a02, a12, a22 - lam
+    c0x = r0y * r1z - r0z * r1y
+    c0y = r0z * r1x - r0x * r1z
+    c0z = r0x * r1y - r0y * r1x
+    c1x = r0y * r2z - r0z * r2y
+    c1y = r0z * r2x - r0x * r2z
+    c1z = r0x * r2y - r0y * r2x
+    c2x = r1y * r2z - r1z * r2y
+    c2y = r1z * r2x - r1x * r2z
+    c2z = r1x * r2y - r1y * r2x
+    n0 = c0x * c0x + c0y * c0y + c0z * c0z
+    n1 = c1x * c1x + c1y * c1y + c1z * c1z
+    n2 = c2x * c2x + c2y * c2y + c2z * c2z
+    if n0 >= n1 and n0 >= n2 and n0 > 0.0:
+        s = 1.0 / np.sqrt(n0)
+        return c0x * s, c0y * s, c0z * s
+    if n1 >= n2 and n1 > 0.0:
+        s = 1.0 / np.sqrt(n1)
+        return c1x * s, c1y * s, c1z * s
+    if n2 > 0.0:
+        s = 1.0 / np.sqrt(n2)
+        return c2x * s, c2y * s, c2z * s
+    # (A - lam I) has rank <= 1: any vector orthogonal to its non-zero row
+    if r0x * r0x + r0y * r0y + r0z * r0z > 0.0:
+        rx, ry, rz = r0x, r0y, r0z
+    elif r1x * r1x + r1y * r1y + r1z * r1z > 0.0:
+        rx, ry, rz = r1x, r1y, r1z
+    else:
+        rx, ry, rz = r2x, r2y, r2z
+    return _orthogonal_unit(rx, ry, rz)
+
+
+@njit(cache=True)
+def _orthogonal_unit(x, y, z):
+    """A unit vector orthogonal to (x, y, z) (any, deterministic)."""
+    ax, ay, az = abs(x), abs(y), abs(z)
+    if ax <= ay and ax <= az:
+        ux, uy, uz = 0.0, -z, y
+    elif ay <= az:
+        ux, uy, uz = -z, 0.0, x
+    else:
+        ux, uy, uz = -y, x, 0.0
+    s = np.sqrt(ux * ux + uy * uy + uz * uz)
+    if s == 0.0:
+        return 1.0, 0.0, 0.0
+    return ux / s, uy / s, uz / s
+
+
+@njit(cache=True)
+def _plane_basis(nx, ny, nz):
+    """Orthonormal u, v with (u, v, n) right-handed."""
+    ux, uy, uz = _orthogonal_unit(nx, ny, nz)
+    vx = ny * uz - nz * uy
+    vy = nz * ux - nx * uz
+    vz = nx * uy - ny * ux
+    return ux, uy, uz, vx, vy, vz
+
+
+@njit(cache=True)
+def _angle(points, p, q, ux, uy, uz, vx, vy, vz):
+    """Angle in [0, 2 pi) of q's projection around p in the plane spanned by u, v."""
+    dx = points[q, 0] - points[p, 0]
+    dy = points[q, 1] - points[p, 1]
+    dz = points[q, 2] - points[p, 2]
+    a = np.arctan2(dx * vx + dy * vy + dz * vz, dx * ux + dy * uy + dz * uz)
+    if a < 0.0:
+        a += TWO_PI
+    return a
+
+
+@njit(cache=True)
+def _angles_from(points, p, pool, lo, hi, nx, ny, nz, ang):
+    """ang[lo:hi]: angles of pool[lo:hi] around p in the plane with normal n."""
+    ux, uy, uz, vx, vy, vz = _plane_basis(nx, ny, nz)
+    for i in range(lo, hi):
+        ang[i] = _angle(points, p, pool[i], ux, uy, uz, vx, vy, vz)
+
+
+@njit(cache=True)
+def _angles(points, p, pool, m, nx, ny, nz, ang):
+    """Angles of the first m candidates' projections around p (plane normal n)."""
+    _angles_from(points, p, pool, 0, m, nx, ny, nz, ang)
+
+
+@njit(cache=True)
+def _sort_by_angle(ang, ids, m, order):
+    """order[:m] = ids[:m] sorted by ang (insertion sort; ties by pool rank)."""
+    for i in range(m):
+        order[i] = ids[i]
+    for i in range(1, m):
+        v = order[i]
+        a = ang[v]
+        j = i - 1
+        while j >= 0 and (ang[order[j]] > a or (ang[order[j]] == a and order[j] > v)):
+            order[j + 1] = order[j]
+            j -= 1
+        order[j + 1] = v
+
+
+@njit(cache=True)
+def _max_gap(ang, order, m):
+    """Largest cyclic gap between consecutive angles and the position after it."""
+    best = TWO_PI - ang[order[m - 1]] + ang[order[0]]
+    pos = 0
+    for i in range(1, m):
+        g = ang[order[i]] - ang[order[i - 1]]
+        if g > best:
+            best = g
+            pos = i
+    return best, pos
+
+
+@njit(cache=True)
+def _greedy_cover(ang, sorted_ids, m, start, max_gap, k, chosen):
+    """Fewest directions containing ``sorted_ids[start]`` with no gap above max_gap.
+
+    ``sorted_ids[:m]`` are pool ranks sorted by angle. Walks counter-clockwise
+    from ``start``, always jumping to the farthest direction within
+    ``max_gap``; for a fixed first element this is optimal. Returns the number
+    chosen (written to ``chosen``), or -1 when more than ``k`` are needed or a
+    gap cannot be bridged.
+    """
+    a0 = ang[sorted_ids[start]]
+    cur = start
+    count = 1
+    chosen[0] = sorted_ids[start]
+    travelled = 0.0  # angle from the start to cur, counter-clockwise
+    while True:
+        if TWO_PI - travelled <= max_gap:
+            return count
+        best = -1
+        best_t = 0.0
+        j = cur
+        for _ in range(m - 1):
+            j += 1
+            if j == m:
+                j = 0
+            if j == start:
+                break
+            t = ang[sorted_ids[j]] - a0
+            if j < start:
+                t += TWO_PI
+            if t - travelled <= max_gap:
+                best = j
+                best_t = t
+            else:
+                break
+        if best < 0:
+            return -1
+        if count == k:
+            return -1
+        chosen[count] = sorted_ids[best]
+        count += 1
+        cur = best
+        travelled = best_t
+
+
+@njit(cache=True)
+def _try_plane(points, p, pool, m_pool, k, nx, ny, nz, max_gap, rule, ang, scratch, out):
+    """Find a fan in the plane with normal n; return its size or -1.
+
+    ``out`` receives pool ranks in counter-clockwise order.
+    """
+    kk = min(k, m_pool)
+    _angles(points, p, pool, kk, nx, ny, nz, ang)
+    ids = scratch[0]
+    srt = scratch[1]
+    chosen = scratch[2]
+    for i in range(kk):
+        ids[i] = i
+    _sort_by_angle(ang, ids, kk, srt)
+    if kk >= 3:
+        g, _ = _max_gap(ang, srt, kk)
+        if g <= max_gap:
+            for i in range(kk):
+                out[i] = srt[i]
+            return kk
+    if m_pool <= kk:
+        return -1
+    if rule == RULE_PAPER:
+        # the k-1 nearest stay; the farthest is replaced by the next nearest
+        _angles_from(points, p, pool, kk, m_pool, nx, ny, nz, ang)
+        for c in range(kk, m_pool):
+            ids[kk - 1] = c
+            _sort_by_angle(ang, ids, kk, srt)
+            g, _ = _max_gap(ang, srt, kk)
+            if g <= max_gap:
+                for i in range(kk):
+                    out[i] = srt[i]
+                return kk
+        return -1
+    # RULE_COVER: grow the prefix; srt holds the prefix sorted by angle
+    _sort_by_angle(ang, ids, kk, srt)
+    m = kk
+    ux, uy, uz, vx, vy, vz = _plane_basis(nx, ny, nz)
+    for c in range(kk, m_pool):
+        # insert candidate c into the angle-sorted prefix
+        a = _angle(points, p, pool[c], ux, uy, uz, vx, vy, vz)
+        ang[c] = a
+        j = m - 1
+        while j >= 0 and ang[srt[j]] > a:
+            srt[j + 1] = srt[j]
+            j -= 1
+        srt[j + 1] = c
+        m += 1
+        start = j + 1
+        cnt = _greedy_cover(ang, srt, m, start, max_gap, k, chosen)
+        if cnt > 0:
+            # fill up with the nearest remaining candidates of the prefix
+            for i in range(cnt):
+                ids[i] = chosen[i]
+            total = cnt
+            for r in range(m):
+                if total >= k:
+                    break
+                used = False
+                for i in range(cnt):
+                    if chosen[i] == r:
+                        used = True
+                        break
+                if not used:
+                    ids[total] = r
+                    total += 1
+            _sort_by_angle(ang, ids, total, out)
+            return total
+    return -1
+
+
+@njit(cache=True)
+def _plane_normal(points, p, pool, k):
+    """Least-squares plane normal through p and its k nearest candidates."""
+    cnt = k + 1
+    cx = points[p, 0]
+    cy = points[p, 1]
+    cz = points[p, 2]
+    for i in range(k):
+        q = pool[i]
+        cx += points[q, 0]
+        cy += points[q, 1]
+        cz += points[q, 2]
+    cx /= cnt
+    cy /= cnt
+    cz /= cnt
+    a00 = a01 = a02 = a11 = a12 = a22 = 0.0
+    for i in range(-1, k):
+        q = p if i < 0 else pool[i]
+        dx = points[q, 0] - cx
+        dy = points[q, 1] - cy
+        dz = points[q, 2] - cz
+        a00 += dx * dx
+        a01 += dx * dy
+        a02 += dx * dz
+        a11 += dy * dy
+        a12 += dy * dz
+        a22 += dz * dz
+    return _smallest_eigvec(a00, a01, a02, a11, a12, a22)
+
+
+@njit(cache=True)
+def _point_normal(points, p, pool, m_pool, n_normal, nx, ny, nz):
+    """Normal stored for p: least-squares plane of its n_normal nearest, signed like n."""
+    ax, ay, az = _plane_normal(points, p, pool, min(n_normal, m_pool))
+    if ax * nx + ay * ny + az * nz < 0.0:
+        return -ax, -ay, -az
+    return ax, ay, az
+
+
+@njit(cache=True)
+def _fan_one(points, p, pool, m_pool, k, max_gap, rule, rotate, final, n_normal, ang, scratch,
+             ring_out):
+    """Fan of point p from its candidate pool. Returns (size, status, nx, ny, nz)."""
+    out = scratch[3]
+    kk = min(k, m_pool)
+    nx, ny, nz = _plane_normal(points, p, pool, kk)
+    cnt = _try_plane(points, p, pool, m_pool, k, nx, ny, nz, max_gap, rule, ang, scratch, out)
+    if cnt > 0:
+        for i in range(cnt):
+            ring_out[i] = pool[out[i]]
+        nx, ny, nz = _point_normal(points, p, pool, m_pool, n_normal, nx, ny, nz)
+        return cnt, STATUS_CLOSED, nx, ny, nz
+    if not final:
+        return 0, STATUS_RETRY, nx, ny, nz
+    # the k nearest, sorted by angle in the least-squares plane
+    ids = scratch[0]
+    srt = scratch[1]
+    _angles(points, p, pool, kk, nx, ny, nz, ang)
+    for i in range(kk):
+        ids[i] = i
+    _sort_by_angle(ang, ids, kk, srt)
+    g, pos = _max_gap(ang, srt, kk)
+    if rotate and kk >= 2:
+        # axis through the projections of the neighbours bounding the largest gap
+        a = srt[(pos - 1 + kk) % kk]
+        b = srt[pos]
+        qa = pool[a]
+        qb = pool[b]
+        dx = points[qb, 0] - points[qa, 0]
+        dy = points[qb, 1] - points[qa, 1]
+        dz = points[qb, 2] - points[qa, 2]
+        dn = dx * nx + dy * ny + dz * nz
+        dx -= dn * nx
+        dy -= dn * ny
+        dz -= dn * nz
+        s = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if s > 0.0:
+            dx /= s
+            dy /= s
+            dz /= s
+            # rotating the plane by 90 degrees about the axis turns n into axis x n
+            rx = dy * nz - dz * ny
+            ry = dz * nx - dx * nz
+            rz = dx * ny - dy * nx
+            s = np.sqrt(rx * rx + ry * ry + rz * rz)
+            rx /= s
+            ry /= s
+            rz /= s
+            cnt = _try_plane(
+                points, p, pool, m_pool, k, rx, ry, rz, max_gap, rule, ang, scratch, out
+            )
+            if cnt > 0:
+                for i in range(cnt):
+                    ring_out[i] = pool[out[i]]
+                return cnt, STATUS_ROTATED, rx, ry, rz
+        # restore the angles of the least-squares plane for the open fan
+        _angles(points, p, pool, kk, nx, ny, nz, ang)
+    # open fan: start right after the largest gap
+    for i in range(kk):
+        ring_out[i] = pool[srt[(pos + i) % kk]]
+    nx, ny, nz = _point_normal(points, p, pool, m_pool, n_normal, nx, ny, nz)
+    return kk, STATUS_OPEN, nx, ny, nz
+
+
+@njit(cache=True)
+def _pool_from_knn(p, knn, points, cap, stamp, pool, dist):
+    """Candidate pool of p, sorted by distance.
+
+    First p's exact nearest neighbours (``knn[row, 1:]``, already sorted), then
+    the neighbours of those neighbours that are not among them, sorted by
+    (distance, index). Every point outside the exact nearest is at least as
+    far as the farthest of them, so the whole pool is in order of distance.
+    """
+    m = 0
+    px, py, pz = points[p, 0], points[p, 1], points[p, 2]
+    stamp_val = p
+    stamp[p] = stamp_val
+    width = knn.shape[1]
+    for a in range(1, width):
+        q = knn[p, a]
+        if q < 0 or stamp[q] == stamp_val:
+            continue
+        stamp[q] = stamp_val
+        pool[m] = q
+        m += 1
+    first = m
+    for a in range(1, width):
+        q = knn[p, a]
+        if q < 0:
+            continue
+        for b in range(1, width):
+            s = knn[q, b]
+            if s < 0 or stamp[s] == stamp_val:
+                continue
+            stamp[s] = stamp_val
+            dx = points[s, 0] - px
+            dy = points[s, 1] - py
+            dz = points[s, 2] - pz
+            d = dx * dx + dy * dy + dz * dz
+            # insertion into the sorted tail by (distance, index): deterministic
+            j = m - 1
+            while j >= first and (dist[j] > d or (dist[j] == d and pool[j] > s)):
+                pool[j + 1] = pool[j]
+                dist[j + 1] = dist[j]
+                j -= 1
+            pool[j + 1] = s
+            dist[j + 1] = d
+            m += 1
+    return min(m, cap)
+
+
+@njit(cache=True, parallel=True)
+def fans_from_knn(points, knn, lo, hi, k, cap, max_gap, rule, n_normal, n_chunks, stamp,
+                  ring_tab, counts, status, normals):
+    """Stage 1: fans of the points ``lo:hi`` from their 2-hop kNN pools.
+
+    ``knn[i]`` are the nearest neighbours of point ``i`` (self first). The
+    points should be in a spatially coherent order (the kd-tree's leaf
+    order): the pools are then close in memory. ``stamp`` is
+    (n_chunks, n) int32 scratch, -1 initially (one row per chunk; call with
+    as many chunks as threads). Fans that need more candidates get
+    STATUS_RETRY.
+    """
+    width = knn.shape[1]
+    pool_cap = (width - 1) * width + 1
+    total = hi - lo
+    for c in prange(n_chunks):
+        b0 = lo + (total * c) // n_chunks
+        b1 = lo + (total * (c + 1)) // n_chunks
+        pool = np.empty(pool_cap, np.int64)
+        dist = np.empty(pool_cap, np.float64)
+        ang = np.empty(pool_cap, np.float64)
+        scratch = np.empty((4, pool_cap), np.int64)
+        ring_out = np.empty(k, np.int64)
+        st = stamp[c]
+        for p in range(b0, b1):
+            # phase A: the exact nearest only (enough for about half the points)
+            m = 0
+            for a in range(1, width):
+                q = knn[p, a]
+                if q >= 0:
+                    pool[m] = q
+                    m += 1
+            m = min(m, cap)
+            cnt, s, nx, ny, nz = _fan_one(
+                points, p, pool, m, k, max_gap, rule, False, False, n_normal, ang, scratch, ring_out
+            )
+            if s == STATUS_RETRY and cap > m:
+                # phase B: add the neighbours' nearest neighbours
+                m = _pool_from_knn(p, knn, points, cap, st, pool, dist)
+                cnt, s, nx, ny, nz = _fan_one(
+                    points, p, pool, m, k, max_gap, rule, False, False, n_normal, ang, scratch,
+                    ring_out,
+                )
+            status[p] = s
+            counts[p] = cnt
+            normals[p, 0] = nx
+            normals[p, 1] = ny
+            normals[p, 2] = nz
+            for j in range(cnt):
+                ring_tab[p, j] = ring_out[j]
+
+
+@njit(cache=True, parallel=True)
+def fans_from_pool(points, which, pools, k, max_gap, rule, rotate, n_normal, ring_tab, counts,
+                   status, normals):
+    """Stage 2: fans of the points ``which`` from exact candidate pools.
+
+    ``pools[i]`` are the nearest neighbours of ``which[i]`` (self first),
+    in order of distance, padded with a negative index.
+    """
+    width = pools.shape[1]
+    n = which.shape[0]
+    n_chunks = min(n, 256)
+    for c in prange(n_chunks):
+        b0 = (n * c) // n_chunks
+        b1 = (n * (c + 1)) // n_chunks
+        pool = np.empty(width, np.int64)
+        ang = np.empty(width, np.float64)
+        scratch = np.empty((4, width), np.int64)
+        ring_out = np.empty(k, np.int64)
+        for i in range(b0, b1):
+            p = which[i]
+            m = 0
+            for a in range(width):
+                q = pools[i, a]
+                if q >= 0 and q != p:
+                    pool[m] = q
+                    m += 1
+            cnt, s, nx, ny, nz = _fan_one(
+                points, p, pool, m, k, max_gap, rule, rotate, True, n_normal, ang, scratch, ring_out
+            )
+            status[p] = s
+            counts[p] = cnt
+            normals[p, 0] = nx
+            normals[p, 1] = ny
+            normals[p, 2] = nz
+            for j in range(cnt):
+                ring_tab[p, j] = ring_out[j]

@@ -1,0 +1,87 @@
+"""Input checks shared by the core functions.
+
+Every check raises a ``ValueError`` (or ``TypeError`` for a wrong kind of
+object) whose message names the problem, and never modifies its input: the
+arrays returned are new ones.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class FanCloudInputError(ValueError):
+    """The input points or parameters cannot give a fan cloud."""
+
+
+def as_points(points, *, name: str = "points") -> np.ndarray:
+    """Return ``points`` as a new C-contiguous ``(n, 3)`` float64 array.
+
+    Raises
+    ------
+    TypeError
+        If ``points`` is not numeric (strings, objects, complex numbers).
+    FanCloudInputError
+        If the shape is not ``(n, 3)`` or a coordinate is NaN or infinite.
+    """
+    try:
+        arr = np.asarray(points)
+    except Exception as exc:  # ragged lists and the like
+        raise TypeError(f"{name} must be an (n, 3) array of numbers: {exc}") from exc
+    if arr.dtype == object or arr.dtype.kind not in "biuf":
+        raise TypeError(
+            f"{name} must be an (n, 3) array of real numbers, got dtype {arr.dtype}"
+        )
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise FanCloudInputError(f"{name} must have shape (n, 3), got {arr.shape}")
+    out = np.array(arr, dtype=np.float64, order="C", copy=True)
+    finite = np.isfinite(out).all(axis=1)
+    if not finite.all():
+        bad = np.flatnonzero(~finite)
+        raise FanCloudInputError(
+            f"{name} contain NaN or infinite coordinates at {bad.size} point(s), "
+            f"first at index {int(bad[0])}: {arr[bad[0]].tolist()}"
+        )
+    return out
+
+
+def as_normals(normals, n: int, *, name: str = "normals") -> np.ndarray:
+    """Return given normals as a new ``(n, 3)`` float64 array of unit vectors."""
+    arr = as_points(normals, name=name)
+    if arr.shape[0] != n:
+        raise FanCloudInputError(f"{name} must have {n} rows (one per point), got {arr.shape[0]}")
+    length = np.linalg.norm(arr, axis=1)
+    if np.any(length == 0):
+        bad = int(np.flatnonzero(length == 0)[0])
+        raise FanCloudInputError(f"{name} has a zero vector at index {bad}")
+    return arr / length[:, None]
+
+
+def check_spread(points: np.ndarray) -> None:
+    """Reject clouds whose points are all identical or all on one line."""
+    centred = points - points.mean(axis=0)
+    s = np.linalg.svd(centred[:: max(1, len(points) // 200_000)], compute_uv=False)
+    scale = max(float(np.abs(points).max()), 1.0)
+    if s[0] <= 1e-12 * scale * np.sqrt(len(points)):
+        raise FanCloudInputError("all points are identical: a fan cloud needs a surface")
+    if s[1] <= 1e-9 * s[0]:
+        raise FanCloudInputError(
+            "all points are collinear (they lie on one line): a fan cloud needs a surface"
+        )
+
+
+def check_point_data(point_data, n: int) -> dict[str, np.ndarray]:
+    """Check passthrough arrays: a mapping of name to array with ``n`` rows."""
+    if point_data is None:
+        return {}
+    if not hasattr(point_data, "items"):
+        raise TypeError("point_data must be a mapping of array name to array")
+    out = {}
+    for key, value in point_data.items():
+        arr = np.asarray(value)
+        if arr.ndim == 0 or arr.shape[0] != n:
+            raise FanCloudInputError(
+                f"point array {key!r} has shape {arr.shape}, expected {n} rows (one per point)"
+            )
+        out[str(key)] = arr
+    return out

@@ -1,0 +1,119 @@
+"""Each filter's parameters, described once.
+
+The VTK algorithms' properties and ``SetX``/``GetX`` methods, the accessor's
+keyword checks, the ``fancloud`` command's options, the ParaView plugin's
+property decorators (later) and the parameter tables in ``docs/`` are all
+derived from these tables. The core functions spell the same keywords and
+defaults; ``tests/test_params.py`` checks that they agree.
+
+Pure Python: no numpy, no VTK.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Param:
+    """One filter parameter."""
+
+    name: str  #: keyword of the core function and the accessor
+    kind: str  #: 'int', 'float', 'bool' or 'choice'
+    default: object
+    doc: str
+    range: tuple | None = None  #: inclusive (lo, hi) for numbers
+    choices: tuple | None = None  #: allowed values for 'choice'
+
+    @property
+    def vtk_name(self) -> str:
+        """CamelCase name for ``SetX``/``GetX`` and ParaView: ``max_angle`` -> ``MaxAngle``."""
+        if len(self.name) == 1:
+            return self.name.upper()
+        return "".join(part.capitalize() for part in self.name.split("_"))
+
+    @property
+    def cli_flag(self) -> str:
+        """Command line option: ``max_angle`` -> ``--max-angle``."""
+        return "--" + self.name.replace("_", "-")
+
+    def check(self, value):
+        """``value`` converted to the parameter type; ``ValueError``/``TypeError`` if not."""
+        if self.kind == "bool":
+            if not isinstance(value, bool | int) or value not in (0, 1, True, False):
+                raise TypeError(f"{self.name} must be True or False, got {value!r}")
+            return bool(value)
+        if self.kind == "choice":
+            if value not in self.choices:
+                raise ValueError(f"{self.name} must be one of {list(self.choices)}, got {value!r}")
+            return value
+        if isinstance(value, bool):
+            raise TypeError(f"{self.name} must be a number, got {value!r}")
+        caster = int if self.kind == "int" else float
+        if self.kind == "int" and not float(value).is_integer():
+            raise TypeError(f"{self.name} must be an integer, got {value!r}")
+        try:
+            out = caster(value)
+        except (TypeError, ValueError) as exc:
+            raise TypeError(f"{self.name} must be a number, got {value!r}") from exc
+        if self.range is not None and not self.range[0] <= out <= self.range[1]:
+            lo, hi = self.range
+            raise ValueError(f"{self.name} must be between {lo} and {hi}, got {out}")
+        return out
+
+
+def check_params(table: tuple[Param, ...], values: dict) -> dict:
+    """Validate keyword arguments against a table; complete them with defaults."""
+    known = {p.name: p for p in table}
+    unknown = sorted(set(values) - set(known))
+    if unknown:
+        raise TypeError(f"unknown parameter(s) {unknown}; known: {sorted(known)}")
+    return {p.name: p.check(values.get(p.name, p.default)) for p in table}
+
+
+def markdown_table(table: tuple[Param, ...]) -> str:
+    """The parameter table in Markdown (used for docs/)."""
+    rows = [
+        "| keyword | VTK / ParaView | CLI | type | default | range | meaning |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for p in table:
+        rng = p.range if p.range else (" / ".join(map(str, p.choices)) if p.choices else "")
+        rows.append(
+            f"| `{p.name}` | `Set{p.vtk_name}` | `{p.cli_flag}` | {p.kind} | `{p.default!r}` "
+            f"| {rng} | {p.doc} |"
+        )
+    return "\n".join(rows)
+
+
+#: Parameters of fan construction (paper section 3): build_fans, FanCloudFilter,
+#: dataset.fancloud.fans(), ``fancloud fans``.
+FAN_PARAMS: tuple[Param, ...] = (
+    Param("k", "int", 6, "neighbours per fan (the paper's k)", range=(3, 64)),
+    Param(
+        "max_angle", "float", 90.0,
+        "largest angle in degrees between consecutive fan neighbours (angle criterion)",
+        range=(1.0, 179.0),
+    ),
+    Param(
+        "max_replacements", "int", 42,
+        "threshold on neighbour replacements: candidates up to the k + max_replacements "
+        "nearest are tried",
+        range=(0, 1000),
+    ),
+    Param(
+        "rule", "choice", "cover",
+        "replacement rule: 'cover' (nearest subset without a gap, default) or 'paper' "
+        "(the literal rule: replace the farthest neighbour by the next nearest)",
+        choices=("cover", "paper"),
+    ),
+    Param(
+        "rotate_sharp_edges", "bool", True,
+        "retry failed fans in the plane rotated by 90 degrees about the gap's axis (Figure 5)",
+    ),
+    Param(
+        "orient", "bool", True,
+        "orient normals consistently by propagation (outward on closed surfaces) when the "
+        "input has no normals",
+    ),
+)
