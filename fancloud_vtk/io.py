@@ -1,0 +1,952 @@
+"""Read point clouds and meshes from files into plain numpy arrays.
+
+Supported formats: PLY (ascii and binary, via ``plyfile``), Wavefront OBJ, VTK XML
+PolyData (``.vtp``) and UnstructuredGrid (``.vtu``), legacy VTK (``.vtk``), column text
+(``.xyz``, ``.pts``, ``.txt``) and numpy ``.npy``. VTK is imported lazily and only for the
+VTK formats; pyvista is never imported.
+
+Examples
+--------
+>>> cloud = read_point_cloud("bunny.ply")  # doctest: +SKIP
+>>> cloud.points.shape, sorted(cloud.point_data)  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["SUPPORTED_FORMATS", "FileReadError", "PointCloudFile", "read_point_cloud"]
+
+#: Format names accepted by :func:`read_point_cloud` (also the recognised file extensions).
+SUPPORTED_FORMATS: tuple[str, ...] = (
+    "ply",
+    "obj",
+    "vtp",
+    "vtu",
+    "vtk",
+    "xyz",
+    "pts",
+    "txt",
+    "npy",
+)
+
+_UNIT_NORMAL_TOL = 1e-2
+
+
+class FileReadError(ValueError):
+    """A file could not be read: names the path and the reason.
+
+    Parameters
+    ----------
+    path : str
+        The file that could not be read.
+    reason : str
+        Why it could not be read.
+    """
+
+    def __init__(self, path: str, reason: str) -> None:
+        super().__init__(path, reason)
+        self.path = path
+        self.reason = reason
+
+    def __str__(self) -> str:
+        return f"cannot read {self.path!r}: {self.reason}"
+
+
+@dataclass(frozen=True, eq=False)
+class PointCloudFile:
+    """Contents of a point-cloud or mesh file.
+
+    Compared by identity (``eq=False``): element-wise array comparison has no single truth
+    value.
+
+    Attributes
+    ----------
+    points : numpy.ndarray
+        ``(n, 3)`` float64, C-contiguous.
+    point_data : dict of str to numpy.ndarray
+        Every per-point array (first axis of length ``n``). Normals are stored under
+        ``"Normals"`` (float64 ``(n, 3)``), colours under ``"RGB"`` (uint8 ``(n, 3)``) or
+        ``"RGBA"`` (uint8 ``(n, 4)``).
+    faces : numpy.ndarray or None
+        ``(m, 3)`` int64 triangles (polygons fan-triangulated) when the file has faces,
+        else ``None``.
+    path : str
+        The path that was read.
+    """
+
+    points: np.ndarray
+    point_data: dict[str, np.ndarray]
+    faces: np.ndarray | None
+    path: str
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _owned(a: np.ndarray, dtype=None) -> np.ndarray:
+    """Return a C-contiguous array that owns its memory (copying only when needed)."""
+    out = np.asarray(a, dtype=dtype)
+    if out.dtype.byteorder not in ("=", "|"):
+        out = out.astype(out.dtype.newbyteorder("="))
+    if out.base is not None or not out.flags.c_contiguous or not out.flags.writeable:
+        out = np.array(out, order="C")
+    return out
+
+
+def _finish(
+    path: str,
+    points: np.ndarray,
+    point_data: dict[str, np.ndarray],
+    faces: np.ndarray | None,
+) -> PointCloudFile:
+    """Validate shapes, check face indices, make every array own its memory."""
+    points = np.asarray(points)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise FileReadError(path, f"points have shape {points.shape}, expected (n, 3)")
+    n = points.shape[0]
+    if n == 0:
+        raise FileReadError(path, "the file contains no points")
+    data = {}
+    for name, arr in point_data.items():
+        arr = np.asarray(arr)
+        if arr.ndim == 0 or arr.shape[0] != n:
+            raise FileReadError(
+                path, f"point array {name!r} has shape {arr.shape}, expected length {n}"
+            )
+        data[name] = _owned(arr)
+    if faces is not None:
+        faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+        if faces.shape[0] == 0:
+            faces = None
+        else:
+            lo, hi = int(faces.min()), int(faces.max())
+            if lo < 0 or hi >= n:
+                bad = lo if lo < 0 else hi
+                raise FileReadError(
+                    path, f"a face references vertex {bad} but there are only {n} vertices"
+                )
+            faces = _owned(faces)
+    return PointCloudFile(
+        points=_owned(points, np.float64), point_data=data, faces=faces, path=path
+    )
+
+
+def _fan_triangulate(offsets: np.ndarray, connectivity: np.ndarray) -> np.ndarray:
+    """Fan-triangulate polygons given CSR ``offsets`` (m + 1) and flat ``connectivity``.
+
+    Polygon ``(v0, v1, ..., vk)`` becomes triangles ``(v0, vi, vi+1)``; polygons with
+    fewer than three vertices are dropped.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(t, 3)`` int64.
+    """
+    offsets = np.asarray(offsets, dtype=np.int64)
+    conn = np.asarray(connectivity, dtype=np.int64)
+    sizes = np.diff(offsets)
+    if sizes.size and np.all(sizes == 3):
+        return conn[offsets[0] : offsets[-1]].reshape(-1, 3)
+    ntri = np.maximum(sizes - 2, 0)
+    total = int(ntri.sum())
+    if total == 0:
+        return np.zeros((0, 3), dtype=np.int64)
+    poly = np.repeat(np.arange(sizes.size), ntri)
+    first = np.cumsum(ntri) - ntri
+    local = np.arange(total, dtype=np.int64) - first[poly] + 1
+    start = offsets[:-1][poly]
+    return np.stack([conn[start], conn[start + local], conn[start + local + 1]], axis=1)
+
+
+def _colours_to_uint8(c: np.ndarray) -> np.ndarray | None:
+    """Convert colour columns to uint8, or ``None`` if they do not look like colours.
+
+    Integers in 0..255 are kept; uint16 is scaled to 0..255; floats all within [0, 1]
+    become ``round(255 * c)``; integral floats in 0..255 are kept as they are.
+    """
+    c = np.asarray(c)
+    if c.size == 0:
+        return c.astype(np.uint8)
+    if c.dtype == np.uint8:
+        return c.copy()
+    if np.issubdtype(c.dtype, np.integer):
+        if c.dtype == np.uint16 and int(c.max()) > 255:
+            return np.rint(c / 257.0).astype(np.uint8)
+        if int(c.min()) >= 0 and int(c.max()) <= 255:
+            return c.astype(np.uint8)
+        return None
+    if not np.issubdtype(c.dtype, np.floating):
+        return None
+    c = c.astype(np.float64)
+    if not np.all(np.isfinite(c)):
+        return None
+    lo, hi = float(c.min()), float(c.max())
+    integral = bool(np.all(c == np.rint(c)))
+    if integral and lo >= 0 and hi <= 255 and hi > 1:
+        return c.astype(np.uint8)
+    if lo >= 0 and hi <= 1:
+        return np.rint(255.0 * c).astype(np.uint8)
+    return None
+
+
+def _looks_like_unit_vectors(v: np.ndarray) -> bool:
+    norms = np.sqrt(np.sum(np.asarray(v, dtype=np.float64) ** 2, axis=1))
+    return bool(np.all(np.abs(norms - 1.0) <= _UNIT_NORMAL_TOL))
+
+
+def _columns_to_cloud(path: str, table: np.ndarray) -> PointCloudFile:
+    """Interpret an ``(n, k >= 3)`` numeric table as xyz plus extra columns.
+
+    3: x y z; 4: x y z intensity; 6: x y z nx ny nz (if unit vectors) else x y z r g b;
+    7: x y z intensity r g b; 9: x y z nx ny nz r g b. Columns that cannot be interpreted
+    are kept as ``"column_<j>"`` (float64).
+    """
+    k = table.shape[1]
+    pts = table[:, :3]
+    data: dict[str, np.ndarray] = {}
+    used = set(range(3))
+
+    def colour(cols: slice) -> None:
+        rgb = _colours_to_uint8(table[:, cols])
+        if rgb is not None:
+            data["RGB"] = rgb
+            used.update(range(cols.start, cols.stop))
+
+    if k == 4:
+        data["intensity"] = table[:, 3].astype(np.float64)
+        used.add(3)
+    elif k == 6:
+        if _looks_like_unit_vectors(table[:, 3:6]):
+            data["Normals"] = table[:, 3:6].astype(np.float64)
+            used.update((3, 4, 5))
+        else:
+            colour(slice(3, 6))
+    elif k == 7:
+        data["intensity"] = table[:, 3].astype(np.float64)
+        used.add(3)
+        colour(slice(4, 7))
+    elif k == 9:
+        data["Normals"] = table[:, 3:6].astype(np.float64)
+        used.update((3, 4, 5))
+        colour(slice(6, 9))
+    for j in range(3, k):
+        if j not in used:
+            data[f"column_{j}"] = table[:, j].astype(np.float64)
+    return _finish(path, pts, data, None)
+
+
+def _loadtxt(source, **kwargs) -> np.ndarray:
+    """``np.loadtxt`` with its "no data" UserWarning raised (callers catch it)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        return np.loadtxt(source, **kwargs)
+
+
+def _read_bytes(path: str) -> bytes:
+    try:
+        with open(path, "rb") as fh:
+            return fh.read()
+    except OSError as exc:
+        raise FileReadError(path, f"{exc.strerror or exc}") from exc
+
+
+def _decode(raw: bytes) -> str:
+    """Decode text; undecodable bytes become U+FFFD and later fail as non-numeric tokens."""
+    text = raw.decode("utf-8", errors="replace")
+    if "\r" in text:
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
+    return text
+
+
+# ----------------------------------------------------------------------------- PLY
+
+_PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
+    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
+    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}  # fmt: skip
+_PLY_FACE_LISTS = ("vertex_indices", "vertex_index")
+
+
+def _ply_cast(values: np.ndarray, dtype: str) -> np.ndarray | None:
+    """Cast parsed float64 text values to a PLY type, or ``None`` if they do not fit."""
+    dt = np.dtype(dtype)
+    if dt.kind == "f":
+        return values.astype(dt)
+    if not np.all(values == np.rint(values)):
+        return None
+    info = np.iinfo(dt)
+    if values.size and (values.min() < info.min or values.max() > info.max):
+        return None
+    return values.astype(dt)
+
+
+def _ply_ascii_fast(raw: bytes) -> tuple[np.ndarray, np.ndarray | None] | None:
+    """Vectorised reader for ASCII PLY: ``(vertex structured array, triangles)``.
+
+    plyfile parses ASCII PLY one line at a time in Python (seconds per 100k lines); this
+    handles the common layouts with numpy and returns ``None`` for anything unusual, in
+    which case plyfile reads the file (and reports any error).
+    """
+    end = raw.find(b"end_header")
+    if not raw.startswith(b"ply") or end < 0:
+        return None
+    body_start = raw.find(b"\n", end)
+    header = raw[:end].decode("ascii", errors="replace").splitlines()
+    if body_start < 0 or not any(ln.split() == ["format", "ascii", "1.0"] for ln in header):
+        return None
+    elements: list[tuple[str, int, list[tuple]]] = []
+    for line in header[1:]:
+        toks = line.split()
+        if not toks or toks[0] in ("comment", "obj_info", "format"):
+            continue
+        if toks[0] == "element" and len(toks) == 3 and toks[2].isdigit():
+            elements.append((toks[1], int(toks[2]), []))
+        elif toks[0] == "property" and elements and len(toks) == 3 and toks[1] in _PLY_TYPES:
+            elements[-1][2].append(("scalar", toks[2], _PLY_TYPES[toks[1]]))
+        elif toks[0] == "property" and elements and len(toks) == 5 and toks[1] == "list":
+            elements[-1][2].append(("list", toks[4], _PLY_TYPES.get(toks[3], "")))
+        else:
+            return None
+    lines = raw[body_start + 1 :].decode("ascii", errors="replace").splitlines()
+    vertex = faces = None
+    pos = 0
+    for name, count, props in elements:
+        seg = lines[pos : pos + count]
+        pos += count
+        if len(seg) < count:
+            return None
+        if name == "vertex":
+            if vertex is not None or any(kind != "scalar" for kind, _, _ in props):
+                return None
+            vertex = np.empty(count, dtype=[(p, t) for _, p, t in props])
+            if count:
+                table = _loadtxt(seg, dtype=np.float64, ndmin=2, comments=None)
+                if table.shape != (count, len(props)):
+                    return None
+                for j, (_, prop, typ) in enumerate(props):
+                    col = _ply_cast(table[:, j], typ)
+                    if col is None:
+                        return None
+                    vertex[prop] = col
+        elif name == "face" and count:
+            faces = _ply_ascii_faces(seg, props)
+            if faces is None:
+                return None
+    return None if vertex is None else (vertex, faces)
+
+
+def _ply_ascii_faces(seg: list[str], props: list[tuple]) -> np.ndarray | None:
+    """Triangles from the ASCII lines of a 'face' element, or ``None`` (use plyfile)."""
+    lists = [i for i, (kind, _, _) in enumerate(props) if kind == "list"]
+    if len(lists) != 1 or props[lists[0]][1] not in _PLY_FACE_LISTS:
+        return None if lists else np.zeros((0, 3), dtype=np.int64)
+    before, after = lists[0], len(props) - lists[0] - 1
+    ntok = np.fromiter(map(len, map(str.split, seg)), dtype=np.int64, count=len(seg))
+    if np.all(ntok == ntok[0]):
+        table = _loadtxt(seg, dtype=np.float64, ndmin=2, comments=None)
+        k = int(ntok[0]) - before - after - 1
+        if k < 0 or table.shape != (len(seg), ntok[0]) or np.any(table[:, before] != k):
+            return None
+        idx = _ply_cast(table[:, before + 1 : before + 1 + k], "i4")
+        if idx is None:
+            return None
+        offsets = np.arange(len(seg) + 1, dtype=np.int64) * k
+        return _fan_triangulate(offsets, idx.ravel())
+    if before or after:
+        return None
+    flat = _fromstring_int(" ".join(seg).encode("ascii"))
+    if flat.size != ntok.sum():
+        return None
+    starts = np.concatenate([[0], np.cumsum(ntok)[:-1]])
+    if np.any(flat[starts] != ntok - 1):
+        return None
+    keep = np.ones(flat.size, dtype=bool)
+    keep[starts] = False
+    return _fan_triangulate(np.concatenate([[0], np.cumsum(ntok - 1)]), flat[keep])
+
+
+def _ply_faces_from_column(col: np.ndarray) -> np.ndarray:
+    """Triangles from a plyfile face list column (fixed-length or object array)."""
+    if col.dtype != object:  # memory-mapped fixed-length lists: (m, k)
+        k = col.shape[-1]
+        offsets = np.arange(col.shape[0] + 1, dtype=np.int64) * k
+        return _fan_triangulate(offsets, np.asarray(col, dtype=np.int64).ravel())
+    sizes = np.fromiter(map(len, col), dtype=np.int64, count=col.shape[0])
+    flat = (
+        np.concatenate([np.asarray(c, dtype=np.int64) for c in col])
+        if sizes.sum() > 0
+        else np.zeros(0, dtype=np.int64)
+    )
+    return _fan_triangulate(np.concatenate([[0], np.cumsum(sizes)]), flat)
+
+
+def _ply_with_plyfile(path: str) -> tuple[np.ndarray, np.ndarray | None]:
+    import plyfile
+
+    fixed_tri = {"face": dict.fromkeys(_PLY_FACE_LISTS, 3)}
+    try:
+        try:
+            # Fast path: memory-map (copy-on-write, the file is never modified) with the
+            # face lists assumed to be triangles; plyfile checks that assumption.
+            ply = plyfile.PlyData.read(path, mmap="c", known_list_len=fixed_tri)
+        except plyfile.PlyElementParseError as exc:
+            if "unexpected list length" not in str(exc):
+                raise
+            ply = plyfile.PlyData.read(path, mmap=False)
+    except Exception as exc:  # plyfile raises many types on bad input
+        raise FileReadError(path, f"not a valid PLY file ({type(exc).__name__}: {exc})") from exc
+
+    elements = {el.name: el for el in ply.elements}
+    if "vertex" not in elements:
+        names = ", ".join(elements) or "none"
+        raise FileReadError(path, f"PLY file has no 'vertex' element (elements: {names})")
+    faces = None
+    face_el = elements.get("face")
+    if face_el is not None and face_el.count > 0:
+        fnames = face_el.data.dtype.names or ()
+        prop = next((p for p in _PLY_FACE_LISTS if p in fnames), None)
+        if prop is not None:
+            faces = _ply_faces_from_column(face_el.data[prop])
+    return elements["vertex"].data, faces
+
+
+def _read_ply(path: str) -> PointCloudFile:
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(1024)
+    except OSError as exc:
+        raise FileReadError(path, f"{exc.strerror or exc}") from exc
+    fast = None
+    if b"\nformat ascii " in head:
+        try:
+            fast = _ply_ascii_fast(_read_bytes(path))
+        except (ValueError, UserWarning):
+            fast = None  # plyfile reads it and reports the problem precisely
+    vdata, faces = fast if fast is not None else _ply_with_plyfile(path)
+
+    names = vdata.dtype.names or ()
+    if vdata.shape[0] == 0:
+        raise FileReadError(path, "PLY 'vertex' element is empty: the file contains no points")
+    missing = [c for c in "xyz" if c not in names]
+    if missing:
+        raise FileReadError(path, f"PLY vertex element lacks propert(ies) {', '.join(missing)}")
+
+    points = np.column_stack([np.asarray(vdata[c], dtype=np.float64) for c in "xyz"])
+    used = {"x", "y", "z"}
+    point_data: dict[str, np.ndarray] = {}
+
+    for normal_names in (("nx", "ny", "nz"), ("normal_x", "normal_y", "normal_z")):
+        if all(c in names for c in normal_names):
+            point_data["Normals"] = np.column_stack(
+                [np.asarray(vdata[c], dtype=np.float64) for c in normal_names]
+            )
+            used.update(normal_names)
+            break
+
+    for prefix in ("", "diffuse_"):
+        rgb_names = [prefix + c for c in ("red", "green", "blue")]
+        if all(c in names for c in rgb_names):
+            alpha = prefix + "alpha"
+            cols = rgb_names + ([alpha] if alpha in names else [])
+            colours = _colours_to_uint8(np.column_stack([np.asarray(vdata[c]) for c in cols]))
+            if colours is not None:
+                point_data["RGBA" if len(cols) == 4 else "RGB"] = colours
+                used.update(cols)
+            break
+
+    for name in names:
+        if name in used or name in point_data:
+            continue
+        field = vdata.dtype.fields[name][0]
+        if field.shape != () or field.kind not in "biuf":
+            continue  # list properties on vertices are not per-point scalars
+        point_data[name] = np.array(vdata[name])
+    return _finish(path, points, point_data, faces)
+
+
+# ----------------------------------------------------------------------------- OBJ
+
+
+class _ObjLines:
+    """Byte-level index of an OBJ file's lines, classified without a Python loop."""
+
+    def __init__(self, raw: bytes) -> None:
+        if b"\r" in raw:
+            raw = raw.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+        if not raw.endswith(b"\n"):
+            raw += b"\n"
+        self._index(raw)
+        if np.any((self.c0 == 32) | (self.c0 == 9)):  # indented lines: normalise, rare
+            raw = b"\n".join(line.lstrip() for line in raw.split(b"\n")[:-1]) + b"\n"
+            self._index(raw)
+        self.raw = raw
+        sp1 = (self.c1 == 32) | (self.c1 == 9)
+        self.is_v = (self.c0 == ord("v")) & sp1
+        self.is_vn = (
+            (self.c0 == ord("v")) & (self.c1 == ord("n")) & ((self.c2 == 32) | (self.c2 == 9))
+        )
+        self.is_f = (self.c0 == ord("f")) & sp1
+        # Blank every keyword in the working copy: the bodies then parse as plain numbers.
+        self.work[self.starts[self.is_v | self.is_vn | self.is_f]] = 32
+        self.work[self.starts[self.is_vn] + 1] = 32
+
+    def _index(self, raw: bytes) -> None:
+        work = np.frombuffer(raw, dtype=np.uint8).copy()
+        nl = np.flatnonzero(work == 10)  # the last byte is a newline
+        self.work = work
+        self.starts = np.concatenate([[0], nl[:-1] + 1]).astype(np.int64)
+        self.lens = nl - self.starts + 1  # including the newline
+        last = work.size - 1  # peeking past a short last line lands on its newline
+        self.c0 = work[self.starts]
+        self.c1 = work[np.minimum(self.starts + 1, last)]
+        self.c2 = work[np.minimum(self.starts + 2, last)]
+
+    def block(self, mask: np.ndarray) -> bytes:
+        """The selected lines (keyword blanked), each ending in a newline."""
+        idx = np.flatnonzero(mask)
+        if idx.size == 0:
+            return b""
+        if idx[-1] - idx[0] + 1 == idx.size:  # one contiguous run: the usual layout
+            return self.work[
+                self.starts[idx[0]] : self.starts[idx[-1]] + self.lens[idx[-1]]
+            ].tobytes()
+        return self.work[np.repeat(mask, self.lens)].tobytes()
+
+    def text_line(self, mask: np.ndarray, k: int) -> tuple[int, str]:
+        """1-based line number and original text of the ``k``-th line selected by ``mask``."""
+        i = int(np.flatnonzero(mask)[k])
+        s, n = int(self.starts[i]), int(self.lens[i])
+        return i + 1, self.raw[s : s + n - 1].decode("utf-8", errors="replace")
+
+
+def _obj_error(path: str, lines: _ObjLines, mask: np.ndarray, k: int, what: str) -> FileReadError:
+    lineno, text = lines.text_line(mask, k)
+    shown = text if len(text) <= 80 else text[:77] + "..."
+    return FileReadError(path, f"line {lineno}: {what}: {shown!r}")
+
+
+def _obj_floats(path: str, lines: _ObjLines, mask: np.ndarray) -> np.ndarray:
+    """Parse 'v' / 'vn' bodies into an ``(n, k)`` float64 table (k >= 3 common columns)."""
+    block = lines.block(mask).decode("utf-8", errors="replace")
+    nrows = int(np.count_nonzero(mask))
+    try:
+        table = _loadtxt(io.StringIO(block), dtype=np.float64, ndmin=2, comments="#")
+        if table.shape[0] == nrows and table.shape[1] >= 3:
+            return table
+    except (ValueError, UserWarning):
+        pass
+    # Slow, precise path: ragged rows (e.g. some with colours) or an error to locate.
+    rows = []
+    for k, body in enumerate(block.split("\n")[:nrows]):
+        toks = body.split("#", 1)[0].split()
+        if len(toks) < 3:
+            raise _obj_error(path, lines, mask, k, "expected at least 3 numbers")
+        try:
+            rows.append([float(t) for t in toks])
+        except ValueError:
+            raise _obj_error(path, lines, mask, k, "non-numeric value") from None
+    width = min(len(r) for r in rows)
+    return np.array([r[:width] for r in rows], dtype=np.float64)
+
+
+def _fromstring_int(text: bytes) -> np.ndarray:
+    """Whitespace-separated integers; raises ValueError on anything else (numpy 1.24+)."""
+    with warnings.catch_warnings():
+        # numpy < 2 warns (DeprecationWarning) instead of raising on unparsable data.
+        warnings.simplefilter("error", DeprecationWarning)
+        try:
+            return np.fromstring(text, dtype=np.int64, sep=" ")
+        except DeprecationWarning as exc:
+            raise ValueError(str(exc)) from exc
+
+
+def _obj_faces_fast(block: bytes) -> tuple[np.ndarray, np.ndarray] | None:
+    """Vectorised parse of 'f' bodies whose vertex tokens all share one form.
+
+    Forms: ``v``, ``v/t``, ``v/t/n``, ``v//n``. Returns ``(refs, counts)`` (raw OBJ vertex
+    indices, vertices per face line) or ``None`` when the block needs the slow path.
+    """
+    first = block.split(None, 1)
+    if not first:
+        return None
+    slashes = first[0].count(b"/")
+    double = b"//" in first[0]
+    if slashes > 2 or (double and slashes != 2):
+        return None
+    per = 1 if slashes == 0 else (2 if slashes == 1 or double else 3)
+
+    b = np.frombuffer(block, dtype=np.uint8)
+    ws = b <= 32
+    tok_start = ~ws
+    tok_start[1:] &= ws[:-1]
+    tok_pos = np.flatnonzero(tok_start)
+    ntok = tok_pos.size
+    slash = b == ord("/")
+    n_double = int(np.count_nonzero(slash[1:] & slash[:-1]))
+    if int(np.count_nonzero(slash)) != slashes * ntok or n_double != (ntok if double else 0):
+        return None  # mixed token forms
+    nl_pos = np.flatnonzero(b == 10)  # the block ends with a newline: one per line
+    counts = np.bincount(np.searchsorted(nl_pos, tok_pos), minlength=nl_pos.size)
+    if counts.size != nl_pos.size:
+        return None
+    if slashes:  # 'v/t/n' -> 'v t n', 'v//n' -> 'v  n'
+        spaced = b.copy()
+        spaced[slash] = 32
+        numbers = spaced.tobytes()
+    else:
+        numbers = block
+    try:
+        flat = _fromstring_int(numbers)
+    except ValueError:
+        return None
+    if flat.size != ntok * per:
+        return None
+    return flat[::per], counts.astype(np.int64)
+
+
+def _obj_faces_slow(
+    path: str, lines: _ObjLines, mask: np.ndarray, block: bytes
+) -> tuple[np.ndarray, np.ndarray]:
+    """Per-line parse of 'f' bodies (mixed token forms); raises naming a bad line."""
+    refs: list[int] = []
+    counts: list[int] = []
+    for k, body in enumerate(block.decode("utf-8", errors="replace").split("\n")[:-1]):
+        toks = body.split()
+        try:
+            refs.extend(int(t.split("/", 1)[0]) for t in toks)
+        except ValueError:
+            raise _obj_error(path, lines, mask, k, "malformed face vertex") from None
+        counts.append(len(toks))
+    return np.array(refs, dtype=np.int64), np.array(counts, dtype=np.int64)
+
+
+def _read_obj(path: str) -> PointCloudFile:
+    lines = _ObjLines(_read_bytes(path))
+    nv = int(np.count_nonzero(lines.is_v))
+    if nv == 0:
+        raise FileReadError(path, "OBJ file has no 'v' (vertex) lines: the file contains no points")
+    vtable = _obj_floats(path, lines, lines.is_v)
+    point_data: dict[str, np.ndarray] = {}
+    if vtable.shape[1] >= 6:  # 'v x y z r g b' (MeshLab and others)
+        rgb = _colours_to_uint8(vtable[:, 3:6])
+        if rgb is not None:
+            point_data["RGB"] = rgb
+    if int(np.count_nonzero(lines.is_vn)) == nv:
+        point_data["Normals"] = _obj_floats(path, lines, lines.is_vn)[:, :3]
+
+    faces = None
+    if lines.is_f.any():
+        is_f = lines.is_f
+        block = lines.block(is_f)
+        if b"#" in block:
+            block = b"\n".join(line.split(b"#", 1)[0] for line in block.split(b"\n"))
+        parsed = _obj_faces_fast(block)
+        if parsed is None:
+            parsed = _obj_faces_slow(path, lines, is_f, block)
+        refs, counts = parsed
+        if np.any(refs == 0):
+            k = int(np.repeat(np.arange(counts.size), counts)[np.argmax(refs == 0)])
+            raise _obj_error(path, lines, is_f, k, "vertex index 0 (OBJ indices start at 1)")
+        if np.any(refs < 0):
+            # Relative index -k: the k-th vertex defined before this face line.
+            v_before = np.cumsum(lines.is_v)[is_f]
+            refs = np.where(refs < 0, np.repeat(v_before, counts) + refs, refs - 1)
+        else:
+            refs = refs - 1
+        faces = _fan_triangulate(np.concatenate([[0], np.cumsum(counts)]), refs)
+    return _finish(path, vtable[:, :3], point_data, faces)
+
+
+# ----------------------------------------------------------------------------- VTK
+
+
+def _clean_vtk_message(msg: str) -> str:
+    """Drop VTK's 'ERROR: In file, line N' header and object addresses."""
+    lines = [ln.strip() for ln in str(msg).splitlines() if ln.strip()]
+    lines = [ln for ln in lines if not re.match(r"^(ERROR|Warning|WARNING): In ", ln)]
+    text = lines[0] if lines else str(msg).strip()
+    return re.sub(r"\s*\(0x[0-9a-fA-F]+\)", "", text)
+
+
+def _read_vtk_format(path: str, fmt: str) -> PointCloudFile:
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkCommonCore import (
+        vtkCommand,
+        vtkLogger,
+        vtkOutputWindow,
+        vtkStringOutputWindow,
+    )
+    from vtkmodules.vtkCommonDataModel import vtkPointSet, vtkPolyData
+
+    if fmt == "vtp":
+        from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
+
+        reader = vtkXMLPolyDataReader()
+    elif fmt == "vtu":
+        from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridReader
+
+        reader = vtkXMLUnstructuredGridReader()
+    else:
+        from vtkmodules.vtkIOLegacy import vtkDataSetReader
+
+        reader = vtkDataSetReader()
+        for flag in (
+            "ReadAllScalarsOn",
+            "ReadAllVectorsOn",
+            "ReadAllNormalsOn",
+            "ReadAllTensorsOn",
+            "ReadAllColorScalarsOn",
+            "ReadAllTCoordsOn",
+            "ReadAllFieldsOn",
+        ):
+            getattr(reader, flag)()
+
+    reader_errors: list[str] = []
+    pipeline_errors: list[str] = []
+
+    def observer(sink: list[str]) -> Callable[..., None]:
+        def on_error(_obj, _event, calldata=None) -> None:
+            sink.append(str(calldata))
+
+        on_error.CallDataType = "string0"  # type: ignore[attr-defined]
+        return on_error
+
+    reader.AddObserver(vtkCommand.ErrorEvent, observer(reader_errors))
+    reader.GetExecutive().AddObserver(vtkCommand.ErrorEvent, observer(pipeline_errors))
+    reader.SetFileName(path)
+
+    # Objects without our observers (e.g. the XML parser) report through the global output
+    # window and the logger: capture the former, mute the latter's stderr sink, and restore
+    # both afterwards. (vtkLogger has no getter for the stderr verbosity alone: the current
+    # cutoff is the closest available value.)
+    previous_window = vtkOutputWindow.GetInstance()
+    capture = vtkStringOutputWindow()
+    previous_verbosity = vtkLogger.GetCurrentVerbosityCutoff()
+    vtkOutputWindow.SetInstance(capture)
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
+    try:
+        reader.Update()
+        out = reader.GetOutputDataObject(0)  # may re-run REQUEST_DATA_OBJECT and complain
+    finally:
+        vtkLogger.SetStderrVerbosity(vtkLogger.ConvertToVerbosity(previous_verbosity))
+        vtkOutputWindow.SetInstance(previous_window)
+    other_errors = [
+        chunk
+        for chunk in re.split(r"\n(?=ERROR: In )", capture.GetOutput() or "")
+        if chunk.startswith("ERROR")
+    ]
+
+    errors = reader_errors + other_errors or pipeline_errors
+    if errors:
+        reasons = list(dict.fromkeys(_clean_vtk_message(e) for e in errors))
+        raise FileReadError(path, f"VTK {type(reader).__name__} failed: {'; '.join(reasons)}")
+    if out is None or not out.IsA("vtkPointSet"):
+        kind = out.GetClassName() if out is not None else "nothing"
+        raise FileReadError(path, f"VTK reader produced {kind}, not a point set")
+    out = vtkPointSet.SafeDownCast(out)
+    vtk_points = out.GetPoints()
+    if vtk_points is None or out.GetNumberOfPoints() == 0:
+        raise FileReadError(path, "the file contains no points")
+    points = np.array(vtk_to_numpy(vtk_points.GetData()), dtype=np.float64)
+    n = points.shape[0]
+
+    point_data: dict[str, np.ndarray] = {}
+    pd = out.GetPointData()
+    for i in range(pd.GetNumberOfArrays()):
+        arr = pd.GetArray(i)  # None for string / non-numeric arrays
+        if arr is None or arr.GetNumberOfTuples() != n:
+            continue
+        try:
+            values = np.array(vtk_to_numpy(arr))
+        except Exception:  # e.g. vtkBitArray
+            continue
+        point_data[arr.GetName() or f"array_{i}"] = values
+    normals = pd.GetNormals()
+    if normals is not None and normals.GetNumberOfComponents() == 3:
+        point_data["Normals"] = np.array(vtk_to_numpy(normals), dtype=np.float64)
+    scalars = pd.GetScalars()
+    if (
+        scalars is not None
+        and scalars.GetDataTypeAsString() == "unsigned char"
+        and scalars.GetNumberOfComponents() in (3, 4)
+    ):
+        key = "RGB" if scalars.GetNumberOfComponents() == 3 else "RGBA"
+        point_data.setdefault(key, np.array(vtk_to_numpy(scalars), dtype=np.uint8))
+
+    faces = None
+    poly = vtkPolyData.SafeDownCast(out)
+    if poly is not None and poly.GetNumberOfPolys() > 0:
+        cells = poly.GetPolys()
+        offsets = vtk_to_numpy(cells.GetOffsetsArray())
+        conn = vtk_to_numpy(cells.GetConnectivityArray())
+        faces = _fan_triangulate(offsets, conn)
+    return _finish(path, points, point_data, faces)
+
+
+# ----------------------------------------------------------------------------- text / npy
+
+
+def _text_slow(path: str, lines: list[str], skip: set[int]) -> np.ndarray:
+    """Precise (slow) parse of column text; raises naming the offending line."""
+    rows: list[list[float]] = []
+    width = None
+    first_line = 0
+    for i, line in enumerate(lines):
+        if i in skip:
+            continue
+        body = line.split("#", 1)[0].strip()
+        if not body:
+            continue
+        toks = body.split()
+        try:
+            row = [float(t) for t in toks]
+        except ValueError:
+            bad = next(t for t in toks if not _is_float(t))
+            raise FileReadError(path, f"line {i + 1}: non-numeric token {bad!r}") from None
+        if width is None:
+            width, first_line = len(row), i + 1
+        elif len(row) != width:
+            raise FileReadError(
+                path,
+                f"line {i + 1} has {len(row)} columns but line {first_line} has {width} "
+                "(ragged rows)",
+            )
+        rows.append(row)
+    if not rows:
+        raise FileReadError(path, "the file contains no points (no data lines)")
+    return np.array(rows, dtype=np.float64)
+
+
+def _is_float(tok: str) -> bool:
+    try:
+        float(tok)
+    except ValueError:
+        return False
+    return True
+
+
+def _read_text(path: str) -> PointCloudFile:
+    text = _decode(_read_bytes(path))
+    if "," in text:
+        text = text.replace(",", " ")
+    lines = text.split("\n")
+
+    def data_lines(start: int):
+        for i in range(start, len(lines)):
+            if lines[i].split("#", 1)[0].strip():
+                yield i
+
+    it = data_lines(0)
+    first = next(it, None)
+    if first is None:
+        raise FileReadError(path, "the file contains no points (no data lines)")
+    skip: set[int] = set()
+    toks = lines[first].split("#", 1)[0].split()
+    if len(toks) == 1 and re.fullmatch(r"[+]?\d+", toks[0]):
+        skip.add(first)  # point-count header, as in .pts files
+        if next(it, None) is None:
+            raise FileReadError(path, "the file contains no points (only a count line)")
+    body = lines[first + 1 :] if skip else lines
+    try:
+        table = _loadtxt(body, dtype=np.float64, ndmin=2, comments="#")
+    except (ValueError, UserWarning):
+        table = _text_slow(path, lines, skip)
+    if table.shape[1] < 3:
+        raise FileReadError(path, f"rows have {table.shape[1]} column(s); need at least 3 (x y z)")
+    return _columns_to_cloud(path, table)
+
+
+def _read_npy(path: str) -> PointCloudFile:
+    try:
+        arr = np.load(path, allow_pickle=False)
+    except Exception as exc:  # ValueError (pickled / bad header), OSError, EOFError...
+        raise FileReadError(path, f"not a valid .npy file ({type(exc).__name__}: {exc})") from exc
+    if not isinstance(arr, np.ndarray):  # e.g. an .npz archive under a .npy name
+        kind = type(arr).__name__
+        if hasattr(arr, "close"):
+            arr.close()
+        raise FileReadError(path, f"expected a single .npy array, got {kind}")
+    if (
+        arr.dtype.names is not None
+        or not np.issubdtype(arr.dtype, np.number)
+        or np.issubdtype(arr.dtype, np.complexfloating)
+    ):
+        raise FileReadError(path, f"array dtype {arr.dtype} is not real numeric")
+    if arr.ndim != 2 or arr.shape[1] < 3:
+        raise FileReadError(path, f"array has shape {arr.shape}; expected (n, 3) or (n, >=3)")
+    return _columns_to_cloud(path, arr)
+
+
+# ----------------------------------------------------------------------------- public
+
+
+_READERS: dict[str, Callable[[str], PointCloudFile]] = {
+    "ply": _read_ply,
+    "obj": _read_obj,
+    "vtp": lambda p: _read_vtk_format(p, "vtp"),
+    "vtu": lambda p: _read_vtk_format(p, "vtu"),
+    "vtk": lambda p: _read_vtk_format(p, "vtk"),
+    "xyz": _read_text,
+    "pts": _read_text,
+    "txt": _read_text,
+    "npy": _read_npy,
+}
+
+
+def read_point_cloud(path: str | os.PathLike[str], *, format: str | None = None) -> PointCloudFile:
+    """Read a point cloud (or mesh vertices and triangles) from a file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        File to read; it is never modified.
+    format : str, optional
+        One of :data:`SUPPORTED_FORMATS` (case-insensitive, a leading dot is allowed);
+        by default taken from the file extension.
+
+    Returns
+    -------
+    PointCloudFile
+        Points, per-point arrays and triangles; all arrays own their memory.
+
+    Raises
+    ------
+    FileReadError
+        If the file is missing, a directory, empty, of an unknown format, or cannot be
+        parsed; the message names the path and the reason.
+    """
+    path = os.fspath(path)
+    if isinstance(path, bytes):
+        path = os.fsdecode(path)
+    if not os.path.exists(path):
+        raise FileReadError(path, "no such file")
+    if os.path.isdir(path):
+        raise FileReadError(path, "is a directory, not a file")
+    if os.path.getsize(path) == 0:
+        raise FileReadError(path, "the file is empty (0 bytes)")
+
+    supported = ", ".join(SUPPORTED_FORMATS)
+    if format is not None:
+        fmt = format.lower().lstrip(".")
+        if fmt not in _READERS:
+            raise FileReadError(path, f"unknown format {format!r}; supported: {supported}")
+    else:
+        ext = os.path.splitext(path)[1]
+        fmt = ext.lower().lstrip(".")
+        if fmt not in _READERS:
+            shown = repr(ext) if ext else "no extension"
+            raise FileReadError(
+                path,
+                f"unknown file extension ({shown}); supported: {supported} (or pass format=...)",
+            )
+    return _READERS[fmt](path)
