@@ -6,7 +6,7 @@ Numba kernels sit beside the stage that uses them (``_fan_kernels`` for
 
 import os as _os
 
-if "NUMBA_THREADING_LAYER_PRIORITY" not in _os.environ and "NUMBA_THREADING_LAYER" not in _os.environ:
+if not {"NUMBA_THREADING_LAYER_PRIORITY", "NUMBA_THREADING_LAYER"} & set(_os.environ):
     # Try OpenMP and numba's own work queue before TBB: a too-old TBB on the
     # system only makes numba warn and fall back anyway.
     import numba as _numba
