@@ -494,8 +494,12 @@ def _fan_one(points, p, pool, dist, n_sorted, n_avail, m_pool, k, max_gap, rule,
                 for i in range(cnt):
                     ring_out[i] = pool[out[i]]
                 return cnt, STATUS_ROTATED, rx, ry, rz
-        # restore the angles of the least-squares plane for the open fan
+        # back to the least-squares plane for the open fan
         _angles(points, p, pool, kk, nx, ny, nz, ang)
+        for i in range(kk):
+            ids[i] = i
+        _sort_by_angle(ang, ids, kk, srt)
+        g, pos = _max_gap(ang, srt, kk)
     # open fan: start right after the largest gap
     for i in range(kk):
         ring_out[i] = pool[srt[(pos + i) % kk]]

@@ -194,6 +194,9 @@ def build_fans(
         K.fans_from_pool(sp, retry, pools, k, max_gap, rule_id, rotate_sharp_edges, k_query,
                          ring_tab, counts, status, normals_s)
         del pools
+        if rule_id == K.RULE_COVER:
+            _gap_directed_retry(sp, tree, pos, k, width, max_gap, rotate_sharp_edges, k_query,
+                                ring_tab, counts, status, normals_s, workers)
     del tree
     timings["fans"] = time.perf_counter() - t1
     _report(progress, 0.85, "orienting normals")
@@ -236,6 +239,75 @@ def build_fans(
         "timings": timings,
     }
     return FanCloud(pts, offsets, ring, fan_normals, open_, rotated, pdata, info)
+
+
+def _gap_directed_retry(sp, tree, pos, k, width, max_gap, rotate, k_query, ring_tab, counts,
+                        status, normals, workers, n_dir=16, steps=(1.0, 2.0, 4.0), rounds=2):
+    """Retry open fans with candidates searched in the direction of their void.
+
+    Where sampling density jumps, the nearest candidates all lie on the dense
+    side and leave a void on the sparse one. For each open fan, the largest
+    angular gap among its candidates is found, and the nearest neighbours of
+    points placed into that gap (at 1, 2 and 4 times the distance of the
+    farthest candidate, along the gap's bisector) join the candidates, in
+    order of distance; twice. On a real boundary these lie on the same side
+    again, and the fan stays open.
+    """
+    n = len(sp)
+    idx = np.flatnonzero(status == K.STATUS_OPEN)
+    if len(idx) == 0:
+        return
+    pools = pos[tree.query(sp[idx], k=min(width, n), workers=workers)[1].reshape(len(idx), -1)]
+    for _ in range(rounds):
+        p = sp[idx]
+        nrm = normals[idx]
+        rel = sp[np.maximum(pools, 0)] - p[:, None, :]
+        u = np.cross(nrm, np.where(np.abs(nrm[:, :1]) < 0.9, [[1.0, 0, 0]], [[0, 1.0, 0]]))
+        u /= np.linalg.norm(u, axis=1)[:, None]
+        v = np.cross(nrm, u)
+        ang = np.arctan2(np.einsum("ijk,ik->ij", rel, v), np.einsum("ijk,ik->ij", rel, u))
+        ang = np.where(pools >= 0, ang, 100.0)  # missing candidates sort last
+        srt = np.sort(ang, axis=1)
+        valid = srt < 50.0
+        last = np.where(valid, srt, -np.inf).max(axis=1)
+        gaps = np.diff(srt, axis=1)
+        gaps[~valid[:, 1:]] = -np.inf
+        wrap = srt[:, 0] + 2 * np.pi - last
+        j = np.argmax(gaps, axis=1)
+        use_wrap = wrap >= gaps[np.arange(len(idx)), j]
+        start = np.where(use_wrap, last, srt[np.arange(len(idx)), j])
+        width_gap = np.where(use_wrap, wrap, gaps[np.arange(len(idx)), j])
+        mid = start + 0.5 * width_gap
+        bis = np.cos(mid)[:, None] * u + np.sin(mid)[:, None] * v
+        radius = np.where(pools >= 0, np.linalg.norm(rel, axis=2), 0.0).max(axis=1)
+        parts = [pools]
+        for step in steps:
+            centre = p + (step * radius)[:, None] * bis
+            found = tree.query(centre, k=min(n_dir, n), workers=workers)[1]
+            parts.append(pos[found.reshape(len(idx), -1)])
+        pools = _sorted_unique_rows(sp, np.concatenate(parts, axis=1), p)
+        K.fans_from_pool(sp, idx, pools, k, max_gap, K.RULE_COVER, rotate, k_query, ring_tab,
+                         counts, status, normals)
+        still = status[idx] == K.STATUS_OPEN
+        if not still.any():
+            return
+        idx = idx[still]
+        pools = pools[still]
+
+
+def _sorted_unique_rows(sp, pools, p):
+    """Each row's candidates once, in order of distance from p (duplicates -> -1, last)."""
+    dist = np.linalg.norm(sp[np.maximum(pools, 0)] - p[:, None, :], axis=2)
+    dist[pools < 0] = np.inf
+    order = np.argsort(pools, axis=1, kind="stable")
+    pools = np.take_along_axis(pools, order, 1)
+    dist = np.take_along_axis(dist, order, 1)
+    dup = np.zeros(pools.shape, bool)
+    dup[:, 1:] = pools[:, 1:] == pools[:, :-1]
+    dist[dup] = np.inf
+    pools[dup] = -1
+    order = np.argsort(dist, axis=1, kind="stable")
+    return np.ascontiguousarray(np.take_along_axis(pools, order, 1))
 
 
 def _check_parameters(k, max_angle, max_replacements, rule):
