@@ -78,7 +78,7 @@ def check_point_data(point_data, n: int) -> dict[str, np.ndarray]:
         raise TypeError("point_data must be a mapping of array name to array")
     out = {}
     for key, value in point_data.items():
-        arr = np.asarray(value)
+        arr = np.array(value, copy=True)  # the fan cloud never shares the caller's buffers
         if arr.ndim == 0 or arr.shape[0] != n:
             raise FanCloudInputError(
                 f"point array {key!r} has shape {arr.shape}, expected {n} rows (one per point)"
