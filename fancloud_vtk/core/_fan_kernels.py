@@ -34,6 +34,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from . import _grid_kernels as G
+
 RULE_COVER = 0
 RULE_PAPER = 1
 
@@ -259,15 +261,13 @@ def _greedy_cover(ang, sorted_ids, m, start, max_gap, k, chosen):
 
 @njit(cache=True)
 def _try_plane(points, p, pool, dist, n_sorted, n_avail, m_pool, k, nx, ny, nz, max_gap, rule,
-               ang, scratch, out, can_extend, knn, stamp):
+               ang, scratch, out):
     """Find a fan in the plane with normal n; return its size or -1.
 
     ``out`` receives pool ranks in counter-clockwise order. ``pool[:n_sorted]``
     is in order of distance; the rest (up to ``n_avail``) is sorted lazily, as
     far as it is used, by the squared distances in ``dist``. At most the
-    ``m_pool`` nearest are tried. With ``can_extend``, the pool is extended
-    by the nearest neighbours (kNN table ``knn``) of the first ``n_avail``
-    when those are used up (``RULE_COVER`` only).
+    ``m_pool`` nearest are tried.
     """
     kk = min(k, m_pool)
     _angles(points, p, pool, kk, nx, ny, nz, ang)
@@ -288,7 +288,7 @@ def _try_plane(points, p, pool, dist, n_sorted, n_avail, m_pool, k, nx, ny, nz, 
     if rule == RULE_PAPER:
         # the k-1 nearest stay; the farthest is replaced by the next nearest
         for c in range(n_sorted, m_pool):
-            _select_nearest(pool, dist, c, n_avail)
+            G.select_nearest(pool, dist, c, n_avail)
         _angles_from(points, p, pool, kk, m_pool, nx, ny, nz, ang)
         for c in range(kk, m_pool):
             ids[kk - 1] = c
@@ -310,24 +310,9 @@ def _try_plane(points, p, pool, dist, n_sorted, n_avail, m_pool, k, nx, ny, nz, 
             bad += 1
     m = kk
     ux, uy, uz, vx, vy, vz = _plane_basis(nx, ny, nz)
-    levels = 0
-    max_levels = 2 if can_extend else 0
-    ext_lo = 0
-    c = kk - 1
-    while True:
-        c += 1
-        if c == n_avail and n_avail < m_pool and levels < max_levels:
-            # the candidates are used up: add the nearest neighbours of the
-            # last ones added (the exact nearest first, then their neighbours)
-            n_new = _extend_pool(p, knn, points, stamp, pool, dist, ext_lo, n_avail,
-                                 levels == 0)
-            ext_lo = n_avail
-            n_avail = n_new
-            levels += 1
-        if c >= min(n_avail, m_pool):
-            break
+    for c in range(kk, min(n_avail, m_pool)):
         if c >= n_sorted:
-            _select_nearest(pool, dist, c, n_avail)
+            G.select_nearest(pool, dist, c, n_avail)
         # insert candidate c into the angle-sorted prefix
         a = _angle(points, p, pool[c], ux, uy, uz, vx, vy, vz)
         ang[c] = a
@@ -382,22 +367,6 @@ def _try_plane(points, p, pool, dist, n_sorted, n_avail, m_pool, k, nx, ny, nz, 
 
 
 @njit(cache=True)
-def _select_nearest(pool, dist, c, m):
-    """Swap the nearest of pool[c:m] (by distance, then index) into position c."""
-    best = c
-    for i in range(c + 1, m):
-        if dist[i] < dist[best] or (dist[i] == dist[best] and pool[i] < pool[best]):
-            best = i
-    if best != c:
-        t = pool[c]
-        pool[c] = pool[best]
-        pool[best] = t
-        d = dist[c]
-        dist[c] = dist[best]
-        dist[best] = d
-
-
-@njit(cache=True)
 def _plane_normal(points, p, pool, k):
     """Least-squares plane normal through p and its k nearest candidates."""
     cnt = k + 1
@@ -438,13 +407,13 @@ def _point_normal(points, p, pool, m_pool, n_normal, nx, ny, nz):
 
 @njit(cache=True)
 def _fan_one(points, p, pool, dist, n_sorted, n_avail, m_pool, k, max_gap, rule, rotate, final,
-             n_normal, ang, scratch, ring_out, can_extend, knn, stamp):
+             n_normal, ang, scratch, ring_out):
     """Fan of point p from its candidate pool. Returns (size, status, nx, ny, nz)."""
     out = scratch[3]
     kk = min(k, m_pool)
     nx, ny, nz = _plane_normal(points, p, pool, kk)
     cnt = _try_plane(points, p, pool, dist, n_sorted, n_avail, m_pool, k, nx, ny, nz, max_gap,
-                     rule, ang, scratch, out, can_extend, knn, stamp)
+                     rule, ang, scratch, out)
     if cnt > 0:
         for i in range(cnt):
             ring_out[i] = pool[out[i]]
@@ -460,6 +429,9 @@ def _fan_one(points, p, pool, dist, n_sorted, n_avail, m_pool, k, max_gap, rule,
         ids[i] = i
     _sort_by_angle(ang, ids, kk, srt)
     g, pos = _max_gap(ang, srt, kk)
+    # the rotated attempt and the open fan want the whole pool in order of distance
+    for c in range(n_sorted, m_pool):
+        G.select_nearest(pool, dist, c, n_avail)
     if rotate and kk >= 2:
         # axis through the projections of the neighbours bounding the largest gap
         a = srt[(pos - 1 + kk) % kk]
@@ -488,7 +460,7 @@ def _fan_one(points, p, pool, dist, n_sorted, n_avail, m_pool, k, max_gap, rule,
             rz /= s
             cnt = _try_plane(
                 points, p, pool, dist, m_pool, m_pool, m_pool, k, rx, ry, rz, max_gap, rule,
-                ang, scratch, out, False, knn, stamp,
+                ang, scratch, out,
             )
             if cnt > 0:
                 for i in range(cnt):
@@ -507,85 +479,66 @@ def _fan_one(points, p, pool, dist, n_sorted, n_avail, m_pool, k, max_gap, rule,
     return kk, STATUS_OPEN, nx, ny, nz
 
 
-@njit(cache=True)
-def _extend_pool(p, knn, points, stamp, pool, dist, lo, m, first):
-    """Append to p's pool the nearest neighbours of ``pool[lo:m]``; return the new size.
-
-    On the first extension ``pool[:m]`` are p's exact nearest neighbours and
-    get stamped; later ones extend from the candidates the previous one
-    added. New candidates are unsorted, with their squared distances in
-    ``dist`` (the fan search sorts them lazily). Every point outside the
-    exact nearest is at least as far as the farthest of them, so the sorted
-    pool is in order of distance.
-    """
-    px, py, pz = points[p, 0], points[p, 1], points[p, 2]
-    if first:
-        stamp[p] = p
-        for i in range(m):
-            stamp[pool[i]] = p
-    width = knn.shape[1]
-    cap = pool.shape[0]
-    hi = m
-    for a in range(lo, hi):
-        q = pool[a]
-        for b in range(1, width):
-            s = knn[q, b]
-            if s < 0 or stamp[s] == p:
-                continue
-            if m == cap:
-                return m
-            stamp[s] = p
-            dx = points[s, 0] - px
-            dy = points[s, 1] - py
-            dz = points[s, 2] - pz
-            pool[m] = s
-            dist[m] = dx * dx + dy * dy + dz * dz
-            m += 1
-    return m
-
-
 @njit(cache=True, parallel=True)
-def fans_from_knn(points, knn, lo, hi, k, cap, max_gap, rule, n_normal, n_chunks, stamp,
-                  ring_tab, counts, status, normals):
-    """Stage 1: fans of the points ``lo:hi`` from their 2-hop kNN pools.
+def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, max_gap,
+                   rule, rotate, n_normal, n_chunks, ring_tab, counts, status, normals):
+    """Stage 1: fans of the points of cells ``c_lo:c_hi``, neighbours from the grid.
 
-    ``knn[i]`` are the nearest neighbours of point ``i`` (self first). The
-    points should be in a spatially coherent order (the kd-tree's leaf
-    order): the pools are then close in memory. ``stamp`` is
-    (n_chunks, n) int32 scratch, -1 initially (one row per chunk; call with
-    as many chunks as threads). Fans that need more candidates get
-    STATUS_RETRY.
+    ``points`` are in cell order (see :mod:`._grid_kernels`). Each point's
+    pool is the set of points of the 27 cells around its cell that lie
+    within its safe radius: exactly its nearest neighbours, in a
+    spatially coherent block of memory. A point whose pool holds at least
+    ``cap`` candidates gets its final fan here (closed, rotated or open);
+    one with fewer, whose fan needs more candidates, gets STATUS_RETRY.
+    The work is split into ``n_chunks`` parts (a few per thread); the result
+    does not depend on it.
     """
-    width = knn.shape[1]
-    pool_cap = 4 * (width - 1) * width + 1
-    total = hi - lo
-    for c in prange(n_chunks):
-        b0 = lo + (total * c) // n_chunks
-        b1 = lo + (total * (c + 1)) // n_chunks
-        pool = np.empty(pool_cap, np.int64)
-        dist = np.empty(pool_cap, np.float64)
-        ang = np.empty(pool_cap, np.float64)
-        scratch = np.empty((4, pool_cap), np.int64)
+    n_cells = c_hi - c_lo
+    n_chunks = max(1, min(n_cells, n_chunks))
+    for ch in prange(n_chunks):
+        b0 = c_lo + (n_cells * ch) // n_chunks
+        b1 = c_lo + (n_cells * (ch + 1)) // n_chunks
+        width = 256
+        cand = np.empty(width, np.int64)
+        pool = np.empty(width, np.int64)
+        dist = np.empty(width, np.float64)
+        ang = np.empty(width, np.float64)
+        scratch = np.empty((4, width), np.int64)
         ring_out = np.empty(k, np.int64)
-        st = stamp[c]
-        for p in range(b0, b1):
-            m = 0
-            for a in range(1, width):
-                q = knn[p, a]
-                if q >= 0:
-                    pool[m] = q
-                    m += 1
-            cnt, s, nx, ny, nz = _fan_one(
-                points, p, pool, dist, m, m, cap, k, max_gap, rule, False, False, n_normal, ang,
-                scratch, ring_out, rule == RULE_COVER, knn, st,
-            )
-            status[p] = s
-            counts[p] = cnt
-            normals[p, 0] = nx
-            normals[p, 1] = ny
-            normals[p, 2] = nz
-            for j in range(cnt):
-                ring_tab[p, j] = ring_out[j]
+        for c in range(b0, b1):
+            m = G.block_size(start, cell_xyz, table, c, 1)
+            if m > width:
+                width = 2 * m
+                cand = np.empty(width, np.int64)
+                pool = np.empty(width, np.int64)
+                dist = np.empty(width, np.float64)
+                ang = np.empty(width, np.float64)
+                scratch = np.empty((4, width), np.int64)
+            m = G.gather_block(start, cell_xyz, table, c, 1, cand)
+            for p in range(start[c], start[c + 1]):
+                r = G.safe_radius(points, p, lo, h, cell_xyz, c, 1)
+                m_cert = G.certify(points, p, cand, m, r, pool, dist)
+                if m_cert < n_normal or m_cert < k:
+                    status[p] = STATUS_RETRY
+                    counts[p] = 0
+                    continue
+                # sort the nearer half (by area) now, the rest lazily if the fan needs it
+                n_sorted = G.sort_within(pool, dist, m_cert, 0.5 * r * r)
+                if n_sorted < n_normal:
+                    G.select_sorted(pool, dist, n_sorted, n_normal, m_cert)
+                    n_sorted = n_normal
+                m_pool = min(cap, m_cert)
+                cnt, s, nx, ny, nz = _fan_one(
+                    points, p, pool, dist, n_sorted, m_cert, m_pool, k, max_gap, rule, rotate,
+                    m_cert >= cap, n_normal, ang, scratch, ring_out,
+                )
+                status[p] = s
+                counts[p] = cnt
+                normals[p, 0] = nx
+                normals[p, 1] = ny
+                normals[p, 2] = nz
+                for j in range(cnt):
+                    ring_tab[p, j] = ring_out[j]
 
 
 @njit(cache=True, parallel=True)
@@ -604,7 +557,6 @@ def fans_from_pool(points, which, pools, k, max_gap, rule, rotate, n_normal, rin
         b1 = (n * (c + 1)) // n_chunks
         pool = np.empty(width, np.int64)
         pool_dist = np.zeros(width, np.float64)  # unused: exact pools come sorted
-        no_stamp = np.empty(1, np.int32)  # unused: exact pools are not extended
         ang = np.empty(width, np.float64)
         scratch = np.empty((4, width), np.int64)
         ring_out = np.empty(k, np.int64)
@@ -618,7 +570,7 @@ def fans_from_pool(points, which, pools, k, max_gap, rule, rotate, n_normal, rin
                     m += 1
             cnt, s, nx, ny, nz = _fan_one(
                 points, p, pool, pool_dist, m, m, m, k, max_gap, rule, rotate, True, n_normal,
-                ang, scratch, ring_out, False, pools, no_stamp,
+                ang, scratch, ring_out,
             )
             status[p] = s
             counts[p] = cnt
@@ -627,3 +579,27 @@ def fans_from_pool(points, which, pools, k, max_gap, rule, rotate, n_normal, rin
             normals[p, 2] = nz
             for j in range(cnt):
                 ring_tab[p, j] = ring_out[j]
+
+
+@njit(cache=True, parallel=True)
+def to_input_order(order, pos, ring_tab, counts, normals):
+    """Rings (CSR) and normals in the input order from the cell-ordered tables.
+
+    ``order[s]`` is the input index of sorted point ``s`` and ``pos`` its
+    inverse; ring entries are translated to input indices.
+    """
+    n = order.shape[0]
+    offsets = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        offsets[i + 1] = offsets[i] + counts[pos[i]]
+    ring = np.empty(offsets[n], np.int64)
+    out_normals = np.empty((n, 3), np.float64)
+    for i in prange(n):
+        s = pos[i]
+        o = offsets[i]
+        for j in range(counts[s]):
+            ring[o + j] = order[ring_tab[s, j]]
+        out_normals[i, 0] = normals[s, 0]
+        out_normals[i, 1] = normals[s, 1]
+        out_normals[i, 2] = normals[s, 2]
+    return offsets, ring, out_normals

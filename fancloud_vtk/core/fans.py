@@ -13,6 +13,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import _fan_kernels as K
+from . import _grid_kernels as G
 from ._normal_kernels import flip_fans, orient_by_propagation, outward_scores, transpose_rings
 from .model import FanCloud
 from .validation import (
@@ -145,58 +146,49 @@ def build_fans(
     timings = {}
     t0 = time.perf_counter()
     _report(progress, 0.0, "neighbour search")
-    tree = cKDTree(pts, balanced_tree=False)
-    # Work in the tree's leaf order: spatially coherent, so the candidate
-    # pools of consecutive points are close in memory (several times faster).
-    order = tree.indices.astype(np.int64, copy=False)
-    pos = np.empty(n, np.int64)
-    pos[order] = np.arange(n, dtype=np.int64)
-    sp = pts[order]
-    k_query = min(2 * k, n - 1)  # the exact 2k nearest
-    dist, knn = tree.query(sp, k=k_query + 1, workers=workers)
-    if np.any(dist[:, 1] == 0.0):
-        del tree, dist, knn
+    grid = _Grid(pts)
+    if grid.n_dup:
         return _merge_duplicates(
             pts, k, given_normals, pdata,
             dict(max_angle=max_angle, max_replacements=max_replacements, rule=rule,
                  rotate_sharp_edges=rotate_sharp_edges, orient=orient, workers=workers,
                  progress=progress),
         )
-    del dist
-    knn = pos[knn]
+    # Work in the grid's cell order: spatially coherent, so the candidate
+    # pools of consecutive points are close in memory (several times faster).
+    order, pos, sp = grid.order, grid.pos, grid.sorted_points
     timings["neighbours"] = time.perf_counter() - t0
 
     t1 = time.perf_counter()
     max_gap = np.deg2rad(max_angle) + 1e-9
-    # the literal rule needs exact distance ranks: only the exact prefix in stage 1
-    cap = k_query if rule_id == K.RULE_PAPER else k + max_replacements
+    n_normal = min(2 * k, n - 1)  # the stored normal fits the 2k nearest
+    cap = min(k + max_replacements, n - 1)
     ring_tab = np.full((n, k), -1, np.int64)
     counts = np.zeros(n, np.int64)
     status = np.zeros(n, np.int8)
     normals_s = np.empty((n, 3), np.float64)
-    n_threads = numba.get_num_threads()
-    stamp = np.full((n_threads, n), -1, np.int32)
+    n_cells = grid.n_cells
     n_blocks = max(1, min(16, n // 50_000))
     for b in range(n_blocks):
-        lo = (n * b) // n_blocks
-        hi = (n * (b + 1)) // n_blocks
-        K.fans_from_knn(sp, knn, lo, hi, k, cap, max_gap, rule_id, k_query, n_threads, stamp,
-                        ring_tab, counts, status, normals_s)
+        K.fans_from_grid(sp, grid.lo, grid.h, grid.start, grid.cell_xyz, grid.table,
+                         (n_cells * b) // n_blocks, (n_cells * (b + 1)) // n_blocks,
+                         k, cap, max_gap, rule_id, rotate_sharp_edges, n_normal,
+                         4 * numba.get_num_threads(), ring_tab, counts, status, normals_s)
         _report(progress, 0.05 + 0.75 * (b + 1) / n_blocks, "fans")
-    del stamp, knn
 
     retry = np.flatnonzero(status == K.STATUS_RETRY)
+    tree = None
     if len(retry):
-        width = min(k + max_replacements + 1, n)
-        _, pools = tree.query(sp[retry], k=width, workers=workers)
-        pools = np.asarray(pools, dtype=np.int64).reshape(len(retry), width)
-        pools = np.where(pools < n, pos[np.minimum(pools, n - 1)], -1)
-        K.fans_from_pool(sp, retry, pools, k, max_gap, rule_id, rotate_sharp_edges, k_query,
+        # stage 2: the exact k + max_replacements nearest, from wider blocks of cells
+        pools, tree = grid.knn(retry, cap, tree, workers)
+        K.fans_from_pool(sp, retry, pools, k, max_gap, rule_id, rotate_sharp_edges, n_normal,
                          ring_tab, counts, status, normals_s)
         del pools
-        if rule_id == K.RULE_COVER:
-            _gap_directed_retry(sp, tree, pos, k, width, max_gap, rotate_sharp_edges, k_query,
-                                ring_tab, counts, status, normals_s, workers)
+    if rule_id == K.RULE_COVER and np.any(status == K.STATUS_OPEN):
+        if tree is None:
+            tree = cKDTree(sp, balanced_tree=False)
+        _gap_directed_retry(sp, tree, k, cap + 1, max_gap, rotate_sharp_edges, n_normal,
+                            ring_tab, counts, status, normals_s, workers)
     del tree
     timings["fans"] = time.perf_counter() - t1
     _report(progress, 0.85, "orienting normals")
@@ -213,15 +205,9 @@ def build_fans(
 
     # back to the input order
     t3 = time.perf_counter()
-    ring_tab = ring_tab[pos]
-    counts = counts[pos]
+    offsets, ring, fan_normals = K.to_input_order(order, pos, ring_tab, counts, normals_s)
+    del ring_tab, normals_s, sp
     status = status[pos]
-    fan_normals = normals_s[pos]
-    del normals_s, sp
-    offsets = np.zeros(n + 1, np.int64)
-    np.cumsum(counts, out=offsets[1:])
-    ring = order[ring_tab[np.arange(k)[None, :] < counts[:, None]]]
-    del ring_tab
     open_ = status == K.STATUS_OPEN
     rotated = status == K.STATUS_ROTATED
     timings["output"] = time.perf_counter() - t3
@@ -234,14 +220,14 @@ def build_fans(
         "max_replacements": max_replacements,
         "fans_open": int(open_.sum()),
         "fans_rotated": int(rotated.sum()),
-        "fans_exact_pool": int(len(retry)),
+        "fans_wider_search": int(len(retry)),
         "duplicates_merged": 0,
         "timings": timings,
     }
     return FanCloud(pts, offsets, ring, fan_normals, open_, rotated, pdata, info)
 
 
-def _gap_directed_retry(sp, tree, pos, k, width, max_gap, rotate, k_query, ring_tab, counts,
+def _gap_directed_retry(sp, tree, k, width, max_gap, rotate, n_normal, ring_tab, counts,
                         status, normals, workers, n_dir=16, steps=(1.0, 2.0, 4.0), rounds=2):
     """Retry open fans with candidates searched in the direction of their void.
 
@@ -257,7 +243,7 @@ def _gap_directed_retry(sp, tree, pos, k, width, max_gap, rotate, k_query, ring_
     idx = np.flatnonzero(status == K.STATUS_OPEN)
     if len(idx) == 0:
         return
-    pools = pos[tree.query(sp[idx], k=min(width, n), workers=workers)[1].reshape(len(idx), -1)]
+    pools = tree.query(sp[idx], k=min(width, n), workers=workers)[1].reshape(len(idx), -1)
     for _ in range(rounds):
         p = sp[idx]
         nrm = normals[idx]
@@ -284,9 +270,9 @@ def _gap_directed_retry(sp, tree, pos, k, width, max_gap, rotate, k_query, ring_
         for step in steps:
             centre = p + (step * radius)[:, None] * bis
             found = tree.query(centre, k=min(n_dir, n), workers=workers)[1]
-            parts.append(pos[found.reshape(len(idx), -1)])
+            parts.append(found.reshape(len(idx), -1))
         pools = _sorted_unique_rows(sp, np.concatenate(parts, axis=1), p)
-        K.fans_from_pool(sp, idx, pools, k, max_gap, K.RULE_COVER, rotate, k_query, ring_tab,
+        K.fans_from_pool(sp, idx, pools, k, max_gap, K.RULE_COVER, rotate, n_normal, ring_tab,
                          counts, status, normals)
         still = status[idx] == K.STATUS_OPEN
         if not still.any():
@@ -308,6 +294,49 @@ def _sorted_unique_rows(sp, pools, p):
     pools[dup] = -1
     order = np.argsort(dist, axis=1, kind="stable")
     return np.ascontiguousarray(np.take_along_axis(pools, order, 1))
+
+
+class _Grid:
+    """The points bucketed into uniform cells (:mod:`._grid_kernels`), in cell order."""
+
+    #: points per occupied cell: the 27 cells around a point then certify
+    #: about 2k = 12 nearest neighbours and the candidates the angle
+    #: criterion usually needs
+    TARGET_OCCUPANCY = 8
+
+    def __init__(self, pts: np.ndarray):
+        self.lo = pts.min(axis=0)
+        extent = float((pts.max(axis=0) - self.lo).max())
+        self.h = G.cell_size(pts, self.lo, extent, self.TARGET_OCCUPANCY)
+        (self.order, self.start, self.cell_xyz, self.table,
+         self.n_dup) = G.build_grid(pts, self.lo, 1.0 / self.h,
+                                   int(len(pts) / self.TARGET_OCCUPANCY))
+        self.n_cells = len(self.start) - 1
+        n = len(pts)
+        self.pos = np.empty(n, np.int64)
+        self.pos[self.order] = np.arange(n, dtype=np.int64)
+        self.sorted_points = pts[self.order]
+
+    def knn(self, which: np.ndarray, kq: int, tree, workers: int, w_max: int = 3):
+        """Exact kq nearest (self excluded) of sorted points ``which``, in order.
+
+        Wider blocks of cells first; a kd-tree (built once, returned for
+        reuse) for the few points that ``w_max`` rings of cells cannot
+        certify (outliers, large voids).
+        """
+        cell_of = np.repeat(np.arange(self.n_cells, dtype=np.int64), np.diff(self.start))
+        out = np.full((len(which), kq), -1, np.int64)
+        ok = G.knn_grid(self.sorted_points, self.lo, self.h, self.start, self.cell_xyz,
+                        self.table, cell_of, which, kq, w_max, out)
+        if not ok.all():
+            bad = np.flatnonzero(~ok)
+            if tree is None:
+                tree = cKDTree(self.sorted_points, balanced_tree=False)
+            _, idx = tree.query(self.sorted_points[which[bad]], k=kq + 1, workers=workers)
+            idx = np.asarray(idx, np.int64).reshape(len(bad), kq + 1)
+            # drop the point itself (a duplicate-free cloud: it is the nearest)
+            out[bad] = idx[:, 1:]
+        return out, tree
 
 
 def _check_parameters(k, max_angle, max_replacements, rule):

@@ -172,37 +172,64 @@ class FanCloud:
         )
 
     def validate(self) -> None:
-        """Check shapes, dtypes and index ranges; raise ``ValueError`` naming the problem."""
+        """Check shapes, dtypes and index ranges; raise ``ValueError`` naming the problem.
+
+        The names are those of the arrays in VTK (``fan_offsets``,
+        ``fan_ring``, ``Normals``, ``fan_open``, ``fan_rotated``).
+        """
+        arrays = {
+            "points": self.points,
+            "fan_offsets": self.offsets,
+            "fan_ring": self.ring,
+            "Normals": self.normals,
+            "fan_open": self.open,
+            "fan_rotated": self.rotated,
+        }
+        for key, arr in arrays.items():
+            if not isinstance(arr, np.ndarray):
+                raise ValueError(f"fan cloud {key} must be a numpy array, got {type(arr).__name__}")
         p = self.points
-        if not isinstance(p, np.ndarray) or p.ndim != 2 or p.shape[1] != 3:
-            raise ValueError(f"fan cloud points must be an (n, 3) array, got {np.shape(p)}")
+        if p.ndim != 2 or p.shape[1] != 3:
+            raise ValueError(f"fan cloud points must be an (n, 3) array, got {p.shape}")
         n = p.shape[0]
         if p.dtype != np.float64:
             raise ValueError(f"fan cloud points must be float64, got {p.dtype}")
-        off = self.offsets
-        if off.ndim != 1 or off.shape[0] != n + 1:
-            raise ValueError(f"fan_offsets must have n + 1 = {n + 1} entries, got {off.shape}")
-        if off.dtype != np.int64 or self.ring.dtype != np.int64:
-            raise ValueError("fan_offsets and fan_ring must be int64")
-        if n and (off[0] != 0 or off[-1] != len(self.ring) or np.any(np.diff(off) < 0)):
+        off, ring = self.offsets, self.ring
+        for key, arr in (("fan_offsets", off), ("fan_ring", ring)):
+            if arr.dtype != np.int64:
+                raise ValueError(f"{key} must be int64, got {arr.dtype}")
+            if arr.ndim != 1:
+                raise ValueError(f"{key} must be one-dimensional, got shape {arr.shape}")
+        if off.shape[0] != n + 1:
+            raise ValueError(f"fan_offsets must have n + 1 = {n + 1} entries, got {off.shape[0]}")
+        if off[0] != 0 or off[-1] != len(ring) or np.any(np.diff(off) < 0):
             raise ValueError(
                 "fan_offsets must start at 0, never decrease and end at len(fan_ring) "
-                f"= {len(self.ring)}"
+                f"= {len(ring)}"
             )
-        if len(self.ring) and (self.ring.min() < 0 or self.ring.max() >= n):
-            bad = int(np.flatnonzero((self.ring < 0) | (self.ring >= n))[0])
+        if len(ring) and (ring.min() < 0 or ring.max() >= n):
+            bad = int(np.flatnonzero((ring < 0) | (ring >= n))[0])
             raise ValueError(
-                f"fan_ring entry {bad} is {int(self.ring[bad])}, out of range for {n} points"
+                f"fan_ring entry {bad} is {int(ring[bad])}, out of range for {n} points"
             )
-        if self.normals.shape != (n, 3):
-            raise ValueError(f"Normals must have shape ({n}, 3), got {self.normals.shape}")
-        for name in ("open", "rotated"):
-            arr = getattr(self, name)
+        if self.normals.shape != (n, 3) or self.normals.dtype != np.float64:
+            raise ValueError(
+                f"Normals must be a float64 array of shape ({n}, 3), "
+                f"got {self.normals.dtype} {self.normals.shape}"
+            )
+        for key in ("fan_open", "fan_rotated"):
+            arr = arrays[key]
             if arr.shape != (n,) or arr.dtype != np.bool_:
-                raise ValueError(f"fan {name} flags must be a bool array of shape ({n},)")
+                raise ValueError(
+                    f"{key} flags must be a bool array of shape ({n},), got {arr.dtype} {arr.shape}"
+                )
+        if not isinstance(self.point_data, dict):
+            raise ValueError("fan cloud point_data must be a dict of name to array")
         for key, arr in self.point_data.items():
-            if arr.shape[:1] != (n,):
-                raise ValueError(f"point array {key!r} has {arr.shape[:1]} rows, expected {n}")
+            if not isinstance(arr, np.ndarray) or arr.ndim == 0 or arr.shape[0] != n:
+                raise ValueError(
+                    f"point array {key!r} has shape {np.shape(arr)}, expected {n} rows"
+                )
 
     def __repr__(self) -> str:
         return (
