@@ -196,3 +196,28 @@ def test_progress_and_cancel():
 
     with pytest.raises(Cancelled):
         build_fans(p, progress=lambda f, m: f > 0.5)
+
+
+@pytest.mark.parametrize("shape", ["sphere", "torus", "cube"])
+def test_orientation_joins_parallel_ranges(monkeypatch, shape):
+    """Normals oriented in many small ranges, joined by edge votes, stay outward."""
+    import fancloud_vtk.core.fans as fans_module
+
+    p = {"sphere": sphere(20_000, seed=12), "torus": torus(20_000, seed=13),
+         "cube": cube_surface(20_000, seed=14)}[shape]
+    whole = build_fans(p)
+    monkeypatch.setattr(fans_module, "ORIENT_RANGE", 700)
+    pieces = build_fans(p)
+    np.testing.assert_array_equal(pieces.normals, whole.normals)
+    np.testing.assert_array_equal(pieces.ring, whole.ring)
+    if shape == "sphere":
+        assert np.all(np.einsum("ij,ij->i", pieces.normals, p) > 0)
+
+
+def test_bunny_orientation_in_ranges(monkeypatch, bunny):
+    import fancloud_vtk.core.fans as fans_module
+
+    p, _, mesh_normals = bunny
+    monkeypatch.setattr(fans_module, "ORIENT_RANGE", 2000)
+    fc = build_fans(p)
+    assert np.mean(np.einsum("ij,ij->i", fc.normals, mesh_normals) > 0) > 0.999

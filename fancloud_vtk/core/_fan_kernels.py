@@ -481,7 +481,7 @@ def _fan_one(points, p, pool, dist, n_sorted, n_avail, m_pool, k, max_gap, rule,
 
 @njit(cache=True, parallel=True)
 def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, max_gap,
-                   rule, rotate, n_normal, n_chunks, ring_tab, counts, status, normals):
+                   rule, rotate, n_normal, n_sort, n_chunks, ring_tab, counts, status, normals):
     """Stage 1: fans of the points of cells ``c_lo:c_hi``, neighbours from the grid.
 
     ``points`` are in cell order (see :mod:`._grid_kernels`). Each point's
@@ -522,8 +522,9 @@ def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, ma
                     status[p] = STATUS_RETRY
                     counts[p] = 0
                     continue
-                # sort the nearer half (by area) now, the rest lazily if the fan needs it
-                n_sorted = G.sort_within(pool, dist, m_cert, 0.5 * r * r)
+                # sort about the n_sort nearest now (the radius from the density
+                # of the certified pool), the rest lazily if the fan needs them
+                n_sorted = G.sort_within(pool, dist, m_cert, r * r * n_sort / m_cert)
                 if n_sorted < n_normal:
                     G.select_sorted(pool, dist, n_sorted, n_normal, m_cert)
                     n_sorted = n_normal

@@ -272,15 +272,14 @@ def sort_within(pool, dist, m, r2):
     Returns their number; the others follow unsorted (select them lazily).
     """
     n1 = 0
-    for i in range(m):
-        if dist[i] <= r2:
-            q = pool[i]
-            d = dist[i]
-            pool[i] = pool[n1]
-            dist[i] = dist[n1]
-            pool[n1] = q
-            dist[n1] = d
-            n1 += 1
+    for i in range(m):  # branch-free partition: swap always, advance when inside
+        q = pool[i]
+        d = dist[i]
+        pool[i] = pool[n1]
+        dist[i] = dist[n1]
+        pool[n1] = q
+        dist[n1] = d
+        n1 += d <= r2
     sort_pool(pool, dist, n1)
     return n1
 

@@ -4,13 +4,15 @@ Hoppe et al. (1992) propagate the orientation along a minimum spanning tree
 of the neighbour graph weighted by ``1 - |n_i . n_j|``, so that it crosses
 flat regions first and sharp features last. We grow that tree with Prim's
 algorithm on a bucketed priority (the weight quantised into ``n_buckets``
-levels), which is linear in the number of edges and deterministic.
+levels), which is linear in the number of edges and deterministic; on
+ranges of the (spatially ordered) points in parallel, joined afterwards by
+the votes of the edges between them.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True)
@@ -45,30 +47,27 @@ def _bucket(normals, a, b, n_buckets):
 
 
 @njit(cache=True)
-def orient_by_propagation(normals, ring_tab, counts, t_off, t_src, n_buckets):
-    """Signs that make neighbouring normals agree; return (flipped, component).
+def _prim_range(normals, ring_tab, counts, t_off, t_src, n_buckets, a, b, flipped, component):
+    """Hoppe-style propagation over the fan graph restricted to the points a..b-1.
 
-    ``flipped[i]`` is True where normal ``i`` must be negated (the normals
-    are not modified); ``component[i]``
-    numbers the connected components of the fan graph in order of their
-    lowest point index.
+    Sets ``flipped[a:b]`` (True where the normal must be negated) and
+    ``component[a:b]`` (components numbered from 0 in order of their lowest
+    point); returns the number of components. Edges leaving the range are
+    ignored (see :func:`orient_by_propagation` for how ranges are joined).
     """
-    n = normals.shape[0]
-    visited = np.zeros(n, np.bool_)
-    flipped = np.zeros(n, np.bool_)
-    component = np.full(n, -1, np.int64)
-    key = np.full(n, n_buckets, np.int64)  # n_buckets = not queued
-    parent = np.full(n, -1, np.int64)
+    m = b - a
+    visited = np.zeros(m, np.bool_)
+    key = np.full(m, n_buckets, np.int64)  # n_buckets = not queued
+    parent = np.full(m, -1, np.int64)
     head = np.full(n_buckets, -1, np.int64)
-    nxt = np.full(n, -1, np.int64)
-    prv = np.full(n, -1, np.int64)
+    nxt = np.full(m, -1, np.int64)
+    prv = np.full(m, -1, np.int64)
     n_comp = 0
-    for seed in range(n):
+    for seed in range(m):
         if visited[seed]:
             continue
         comp = n_comp
         n_comp += 1
-        # queue the seed in bucket 0
         key[seed] = 0
         head[0] = seed
         nxt[seed] = -1
@@ -80,33 +79,37 @@ def orient_by_propagation(normals, ring_tab, counts, t_off, t_src, n_buckets):
             if lowest == n_buckets:
                 break
             v = head[lowest]
-            # unlink v
             head[lowest] = nxt[v]
             if nxt[v] >= 0:
                 prv[nxt[v]] = -1
             key[v] = n_buckets
             visited[v] = True
-            component[v] = comp
+            gv = a + v
+            component[gv] = comp
             u = parent[v]
             if u >= 0:
-                d = (normals[v, 0] * normals[u, 0] + normals[v, 1] * normals[u, 1]
-                     + normals[v, 2] * normals[u, 2])
-                if flipped[u]:
+                gu = a + u
+                d = (normals[gv, 0] * normals[gu, 0] + normals[gv, 1] * normals[gu, 1]
+                     + normals[gv, 2] * normals[gu, 2])
+                if flipped[gu]:
                     d = -d
-                if d < 0.0:
-                    flipped[v] = True
-            # relax out- and in-neighbours
+                flipped[gv] = d < 0.0
+            else:
+                flipped[gv] = False
             for side in range(2):
                 if side == 0:
-                    e0, e1 = 0, counts[v]
+                    e0, e1 = 0, counts[gv]
                 else:
-                    e0, e1 = t_off[v], t_off[v + 1]
+                    e0, e1 = t_off[gv], t_off[gv + 1]
                 for e in range(e0, e1):
-                    w = ring_tab[v, e] if side == 0 else t_src[e]
+                    gw = ring_tab[gv, e] if side == 0 else t_src[e]
+                    if gw < a or gw >= b:
+                        continue
+                    w = gw - a
                     if visited[w]:
                         continue
-                    b = _bucket(normals, v, w, n_buckets)
-                    if b >= key[w]:
+                    bk = _bucket(normals, gv, gw, n_buckets)
+                    if bk >= key[w]:
                         continue
                     if key[w] < n_buckets:  # unlink from its current bucket
                         if prv[w] >= 0:
@@ -115,15 +118,156 @@ def orient_by_propagation(normals, ring_tab, counts, t_off, t_src, n_buckets):
                             head[key[w]] = nxt[w]
                         if nxt[w] >= 0:
                             prv[nxt[w]] = prv[w]
-                    key[w] = b
+                    key[w] = bk
                     parent[w] = v
                     prv[w] = -1
-                    nxt[w] = head[b]
-                    if head[b] >= 0:
-                        prv[head[b]] = w
-                    head[b] = w
-                    if b < lowest:
-                        lowest = b
+                    nxt[w] = head[bk]
+                    if head[bk] >= 0:
+                        prv[head[bk]] = w
+                    head[bk] = w
+                    if bk < lowest:
+                        lowest = bk
+    return n_comp
+
+
+@njit(cache=True, parallel=True)
+def _orient_ranges(normals, ring_tab, counts, t_off, t_src, n_buckets, bounds, flipped, component):
+    n_ranges = bounds.shape[0] - 1
+    n_comp = np.zeros(n_ranges, np.int64)
+    for r in prange(n_ranges):
+        n_comp[r] = _prim_range(normals, ring_tab, counts, t_off, t_src, n_buckets,
+                                bounds[r], bounds[r + 1], flipped, component)
+    return n_comp
+
+
+@njit(cache=True)
+def orient_by_propagation(normals, ring_tab, counts, t_off, t_src, n_buckets, range_size):
+    """Signs that make neighbouring normals agree; return (flipped, component).
+
+    Hoppe et al. (1992) propagate the orientation along a minimum spanning
+    tree weighted by ``1 - |n_i . n_j|``. Here the points (in a spatially
+    coherent order) are cut into ranges of ``range_size`` points, each range
+    is oriented on its own in parallel, and the pieces are joined by a
+    maximum spanning tree over the pieces, each pair of touching pieces
+    weighted by the vote of all the fan edges between them (sum of
+    ``+-|n_i . n_j|``, + where the two normals agree). The result does not
+    depend on the number of threads. ``flipped[i]`` is True where normal ``i``
+    must be negated (the normals are not modified); ``component[i]`` numbers
+    the connected components of the fan graph in order of their lowest point.
+    """
+    n = normals.shape[0]
+    n_ranges = max(1, (n + range_size - 1) // range_size)
+    bounds = np.empty(n_ranges + 1, np.int64)
+    for r in range(n_ranges + 1):
+        bounds[r] = min(n, r * range_size)
+    flipped = np.zeros(n, np.bool_)
+    local = np.zeros(n, np.int64)
+    n_comp = _orient_ranges(normals, ring_tab, counts, t_off, t_src, n_buckets, bounds, flipped,
+                            local)
+    first = np.zeros(n_ranges + 1, np.int64)
+    for r in range(n_ranges):
+        first[r + 1] = first[r] + n_comp[r]
+    n_pieces = first[n_ranges]
+    piece = np.empty(n, np.int64)
+    for r in range(n_ranges):
+        for i in range(bounds[r], bounds[r + 1]):
+            piece[i] = first[r] + local[i]
+    # votes of the edges between pieces, accumulated per (piece, piece) pair
+    n_cross = 0
+    for p in range(n):
+        for j in range(counts[p]):
+            if piece[ring_tab[p, j]] != piece[p]:
+                n_cross += 1
+    pa = np.empty(n_cross, np.int64)
+    pb = np.empty(n_cross, np.int64)
+    vote = np.empty(n_cross, np.float64)
+    c = 0
+    for p in range(n):
+        for j in range(counts[p]):
+            q = ring_tab[p, j]
+            if piece[q] == piece[p]:
+                continue
+            d = normals[p, 0] * normals[q, 0] + normals[p, 1] * normals[q, 1] \
+                + normals[p, 2] * normals[q, 2]
+            if flipped[p] != flipped[q]:
+                d = -d
+            x, y = piece[p], piece[q]
+            if x > y:
+                x, y = y, x
+            pa[c] = x
+            pb[c] = y
+            vote[c] = d
+            c += 1
+    order = np.argsort(pa * n_pieces + pb, kind="mergesort")
+    # one edge per pair with the summed vote
+    ea = np.empty(n_cross, np.int64)
+    eb = np.empty(n_cross, np.int64)
+    ev = np.empty(n_cross, np.float64)
+    m = 0
+    for t in range(n_cross):
+        e = order[t]
+        if m > 0 and ea[m - 1] == pa[e] and eb[m - 1] == pb[e]:
+            ev[m - 1] += vote[e]
+        else:
+            ea[m] = pa[e]
+            eb[m] = pb[e]
+            ev[m] = vote[e]
+            m += 1
+    # Kruskal on the strongest votes first: join pieces, flipping where they disagree
+    strength = np.empty(m, np.float64)
+    for t in range(m):
+        strength[t] = -abs(ev[t])
+    by_strength = np.argsort(strength, kind="mergesort")
+    uf = np.arange(n_pieces)
+    rel = np.zeros(n_pieces, np.bool_)  # flip of a piece relative to its root
+    # union-find with parity: rel[x] is x's flip relative to parent[x]
+    for t in range(m):
+        e = by_strength[t]
+        x = ea[e]
+        y = eb[e]
+        # find roots and parities
+        rx = x
+        px = False
+        while uf[rx] != rx:
+            px ^= rel[rx]
+            rx = uf[rx]
+        ry = y
+        py = False
+        while uf[ry] != ry:
+            py ^= rel[ry]
+            ry = uf[ry]
+        if rx == ry:
+            continue
+        disagree = ev[e] < 0.0
+        # attach the larger-numbered root below the smaller one (deterministic)
+        if rx < ry:
+            uf[ry] = rx
+            rel[ry] = px ^ py ^ disagree
+        else:
+            uf[rx] = ry
+            rel[rx] = px ^ py ^ disagree
+    piece_flip = np.zeros(n_pieces, np.bool_)
+    piece_root = np.empty(n_pieces, np.int64)
+    for x in range(n_pieces):
+        r = x
+        f = False
+        while uf[r] != r:
+            f ^= rel[r]
+            r = uf[r]
+        piece_flip[x] = f
+        piece_root[x] = r
+    # components numbered by their lowest point
+    comp_id = np.full(n_pieces, -1, np.int64)
+    component = np.empty(n, np.int64)
+    n_out = 0
+    for i in range(n):
+        r = piece_root[piece[i]]
+        if comp_id[r] < 0:
+            comp_id[r] = n_out
+            n_out += 1
+        component[i] = comp_id[r]
+        if piece_flip[piece[i]]:
+            flipped[i] = not flipped[i]
     return flipped, component
 
 

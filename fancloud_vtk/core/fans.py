@@ -26,6 +26,10 @@ from .validation import (
 
 RULES = {"cover": K.RULE_COVER, "paper": K.RULE_PAPER}
 
+#: points per range of the parallel normal orientation (fixed, so that the
+#: result does not depend on the number of threads)
+ORIENT_RANGE = 1 << 16
+
 
 class DuplicatePointsWarning(UserWarning):
     """Duplicate points were merged before building fans."""
@@ -173,7 +177,8 @@ def build_fans(
         K.fans_from_grid(sp, grid.lo, grid.h, grid.start, grid.cell_xyz, grid.table,
                          (n_cells * b) // n_blocks, (n_cells * (b + 1)) // n_blocks,
                          k, cap, max_gap, rule_id, rotate_sharp_edges, n_normal,
-                         4 * numba.get_num_threads(), ring_tab, counts, status, normals_s)
+                         n_normal + k // 2, 4 * numba.get_num_threads(),
+                         ring_tab, counts, status, normals_s)
         _report(progress, 0.05 + 0.75 * (b + 1) / n_blocks, "fans")
 
     retry = np.flatnonzero(status == K.STATUS_RETRY)
@@ -393,7 +398,8 @@ def _merge_duplicates(pts, k, given_normals, pdata, kwargs):
 def _orientation(points, normals, ring_tab, counts):
     """Signs for consistent normals: propagation, then outward per component."""
     t_off, t_src = transpose_rings(ring_tab, counts)
-    flip, comp = orient_by_propagation(normals, ring_tab, counts, t_off, t_src, 32)
+    flip, comp = orient_by_propagation(normals, ring_tab, counts, t_off, t_src, 32,
+                                      ORIENT_RANGE)
     del t_off, t_src
     n_comp = int(comp.max()) + 1
     score = outward_scores(points, normals, flip, ring_tab, counts, comp, n_comp)
