@@ -19,8 +19,20 @@ from fancloud_vtk.algorithms.fans import FanCloudFilter
 from fancloud_vtk.params import FAN_PARAMS, Param, check_params
 
 
+def _point_set(dataset):
+    """The dataset itself if it is a ``vtkPointSet``, else its points and point arrays.
+
+    Image data and rectilinear grids keep their points implicitly; the fan
+    algorithms only use the points, so these are cast (a new object, the
+    input is untouched).
+    """
+    if dataset.IsA("vtkPointSet"):
+        return dataset
+    return dataset.cast_to_pointset(pass_cell_data=False)
+
+
 def _run(algorithm, dataset, progress_bar: bool, message: str) -> pv.PolyData:
-    algorithm.SetInputDataObject(0, dataset)
+    algorithm.SetInputDataObject(0, _point_set(dataset))
     if progress_bar:
         from pyvista.core.utilities.observers import ProgressMonitor
 

@@ -11,8 +11,10 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
+import warnings
 
 from fancloud_vtk.params import FAN_PARAMS, Param
 
@@ -69,11 +71,19 @@ def _build(points_file, params, quiet):
         progress.close()
 
 
+def _check_output(path: str, ext: str) -> None:
+    """Fail before any work when ``path`` cannot be the output (``main`` prints it, exit 2)."""
+    if not path.lower().endswith(ext):
+        raise ValueError(f"the output must be a {ext} file, got {path!r}")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise FileNotFoundError(f"cannot write {path!r}: no such directory {folder!r}")
+
+
 def cmd_fans(args) -> int:
     from fancloud_vtk.io import read_point_cloud
 
-    if not args.output.lower().endswith(".vtp"):
-        raise SystemExit(f"fancloud fans: the output must be a .vtp file, got {args.output}")
+    _check_output(args.output, ".vtp")
     src = read_point_cloud(args.input)
     t0 = time.perf_counter()
     fc = _build(src, _params(args, FAN_PARAMS), args.quiet)
@@ -142,8 +152,15 @@ def make_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     parser = make_parser()
     args = parser.parse_args(argv)
+
+    def show_warning(message, category, filename, lineno, file=None, line=None):
+        # one line naming the problem, not the source line that warned
+        print(f"fancloud {args.command}: warning: {message}", file=sys.stderr)
+
     try:
-        return args.func(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = show_warning
+            return args.func(args)
     except (ValueError, TypeError, OSError) as exc:
         print(f"fancloud {args.command}: error: {exc}", file=sys.stderr)
         return 2

@@ -11,6 +11,9 @@ Pure Python: no numpy, no VTK.
 
 from __future__ import annotations
 
+import math
+import numbers
+import sys
 from dataclasses import dataclass
 
 
@@ -38,28 +41,45 @@ class Param:
         return "--" + self.name.replace("_", "-")
 
     def check(self, value):
-        """``value`` converted to the parameter type; ``ValueError``/``TypeError`` if not."""
+        """``value`` converted to the parameter type; ``ValueError``/``TypeError`` if not.
+
+        Numbers must be real numbers (Python or numpy, not strings or bools),
+        ``int`` parameters integral ones (``6.0`` is accepted as ``6``); bools
+        accept ``True``/``False``/``0``/``1`` and numpy bools.
+        """
         if self.kind == "bool":
-            if not isinstance(value, bool | int) or value not in (0, 1, True, False):
-                raise TypeError(f"{self.name} must be True or False, got {value!r}")
-            return bool(value)
+            if isinstance(value, _bool_types()) or (
+                isinstance(value, numbers.Integral) and value in (0, 1)
+            ):
+                return bool(value)
+            raise TypeError(f"{self.name} must be True or False, got {value!r}")
         if self.kind == "choice":
-            if value not in self.choices:
+            if not isinstance(value, str) or value not in self.choices:
                 raise ValueError(f"{self.name} must be one of {list(self.choices)}, got {value!r}")
             return value
-        if isinstance(value, bool):
+        if isinstance(value, _bool_types()) or not isinstance(value, numbers.Real):
             raise TypeError(f"{self.name} must be a number, got {value!r}")
-        caster = int if self.kind == "int" else float
-        if self.kind == "int" and not float(value).is_integer():
-            raise TypeError(f"{self.name} must be an integer, got {value!r}")
-        try:
-            out = caster(value)
-        except (TypeError, ValueError) as exc:
-            raise TypeError(f"{self.name} must be a number, got {value!r}") from exc
+        if self.kind == "int":
+            if isinstance(value, numbers.Integral):
+                out = int(value)
+            elif math.isfinite(value) and float(value).is_integer():
+                out = int(value)
+            else:
+                raise TypeError(f"{self.name} must be an integer, got {value!r}")
+        else:
+            out = float(value)
+            if math.isnan(out):
+                raise ValueError(f"{self.name} must be a number, got NaN")
         if self.range is not None and not self.range[0] <= out <= self.range[1]:
             lo, hi = self.range
             raise ValueError(f"{self.name} must be between {lo} and {hi}, got {out}")
         return out
+
+
+def _bool_types() -> tuple[type, ...]:
+    """``numpy.bool_`` when numpy is already imported (this module does not import it)."""
+    np = sys.modules.get("numpy")
+    return (bool,) if np is None else (bool, np.bool_)
 
 
 def check_params(table: tuple[Param, ...], values: dict) -> dict:

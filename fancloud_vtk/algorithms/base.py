@@ -16,7 +16,7 @@ Imports numpy, ``vtkmodules`` and the core only (never pyvista): ParaView
 from __future__ import annotations
 
 from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
-from vtkmodules.vtkCommonCore import vtkOutputWindow
+from vtkmodules.vtkCommonCore import vtkCommand, vtkOutputWindow
 
 from fancloud_vtk.params import Param
 
@@ -104,11 +104,48 @@ def run(algorithm, port: int = 0):
 
     VTK only reports a failed update through its return value (and a second
     ``Update()`` returns success without running), so the algorithm is
-    marked modified first when its last run failed.
+    marked modified first when its last run failed. A failure outside
+    ``RequestData`` (no input connection, an input of the wrong type, a
+    failing upstream algorithm) raises a ``RuntimeError`` with VTK's message
+    instead of returning an empty output.
     """
+    from .convert import _ErrorCatcher
+
     if algorithm.last_error is not None:
         algorithm.Modified()
-    algorithm.Update()
+    algorithms = _pipeline(algorithm)
+    errors, pipeline_errors = _ErrorCatcher(), _ErrorCatcher()
+    tags = [(alg, alg.AddObserver(vtkCommand.ErrorEvent, errors)) for alg in algorithms]
+    tags += [
+        (alg.GetExecutive(), alg.GetExecutive().AddObserver(vtkCommand.ErrorEvent, pipeline_errors))
+        for alg in algorithms
+    ]
+    try:
+        ok = algorithm.Update()
+    finally:
+        for obj, tag in tags:
+            obj.RemoveObserver(tag)
     if algorithm.last_error is not None:
         raise algorithm.last_error
+    # Update() returns the status on VTK >= 9.4 (None before: then VTK's errors decide)
+    messages = errors.messages + pipeline_errors.messages
+    failed = (not ok) if ok is not None else bool(messages)
+    if failed:
+        reason = messages[0] if messages else "see the VTK error output"
+        raise RuntimeError(f"{type(algorithm).__name__}: the VTK pipeline update failed: {reason}")
     return algorithm.GetOutputDataObject(port)
+
+
+def _pipeline(algorithm) -> list:
+    """``algorithm`` and every algorithm upstream of it."""
+    seen, todo, out = set(), [algorithm], []
+    while todo:
+        alg = todo.pop()
+        if alg is None or id(alg) in seen:
+            continue
+        seen.add(id(alg))
+        out.append(alg)
+        for port in range(alg.GetNumberOfInputPorts()):
+            for conn in range(alg.GetNumberOfInputConnections(port)):
+                todo.append(alg.GetInputAlgorithm(port, conn))
+    return out

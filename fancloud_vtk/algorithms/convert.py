@@ -9,13 +9,17 @@ The fan cloud as ``vtkPolyData`` (public contract, see docs/data_model.md):
 * polys: the fan cloud's distinct triangles;
 * point arrays ``Normals`` (float64, unit; also the active normals),
   ``fan_open`` (uint8, 1 where the fan is open), ``fan_rotated`` (uint8, 1
-  where the fan was built in the rotated plane), and every passthrough array;
+  where the fan was built in the rotated plane), and every passthrough array
+  (bool arrays as uint8, float16 as float32, arrays of more than two axes
+  flattened to ``(n, components)``: VTK has no such arrays);
 * field arrays ``fan_offsets`` and ``fan_ring`` (int64, CSR rings).
 """
 
 from __future__ import annotations
 
 import os
+import re
+from contextlib import contextmanager
 
 import numpy as np
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
@@ -33,10 +37,28 @@ RESERVED = (NORMALS, FAN_OPEN, FAN_ROTATED)
 
 
 def _to_vtk_array(arr: np.ndarray, name: str):
-    arr = np.ascontiguousarray(arr)
+    """A deep VTK copy of ``arr`` named ``name``.
+
+    bool becomes uint8 and float16 float32 (VTK has neither); non-native byte
+    order is swapped; more than two axes are flattened to ``(n, components)``.
+    Other kinds VTK cannot hold (complex, strings, objects) raise a
+    ``TypeError`` naming the array.
+    """
+    arr = np.asarray(arr)
     if arr.dtype == np.bool_:
         arr = arr.astype(np.uint8)
-    out = numpy_to_vtk(arr, deep=1)
+    elif arr.dtype == np.float16:
+        arr = arr.astype(np.float32)
+    if arr.dtype.kind not in "biuf":
+        raise TypeError(
+            f"point array {name!r} has dtype {arr.dtype}, which VTK cannot store; "
+            "convert it to a real numeric type first"
+        )
+    if not arr.dtype.isnative:
+        arr = arr.astype(arr.dtype.newbyteorder("="))
+    if arr.ndim > 2:
+        arr = arr.reshape(arr.shape[0], -1)
+    out = numpy_to_vtk(np.ascontiguousarray(arr), deep=1)
     out.SetName(name)
     return out
 
@@ -124,35 +146,96 @@ def fancloud_from_vtk(dataset) -> FanCloud:
         )
     offsets = np.array(vtk_to_numpy(fd.GetArray(FAN_OFFSETS)), dtype=np.int64, copy=True)
     ring = np.array(vtk_to_numpy(fd.GetArray(FAN_RING)), dtype=np.int64, copy=True)
-    normals = np.asarray(arrays.pop(NORMALS), dtype=np.float64).reshape(n, 3)
-    open_ = arrays.pop(FAN_OPEN).astype(bool).reshape(n)
-    rotated = arrays.pop(FAN_ROTATED, np.zeros(n, np.uint8)).astype(bool).reshape(n)
+    normals = np.asarray(arrays.pop(NORMALS), dtype=np.float64)
+    if normals.shape != (n, 3):
+        raise ValueError(f"{NORMALS} point array must have shape ({n}, 3), got {normals.shape}")
+    flags = {}
+    for name in (FAN_OPEN, FAN_ROTATED):
+        arr = arrays.pop(name, None)
+        if arr is None:  # fan_rotated is optional (all False)
+            arr = np.zeros(n, np.uint8)
+        if arr.shape != (n,):
+            raise ValueError(f"{name} point array must have shape ({n},), got {arr.shape}")
+        flags[name] = arr.astype(bool)
+    open_, rotated = flags[FAN_OPEN], flags[FAN_ROTATED]
     return FanCloud(points, offsets, ring, normals, open_, rotated, arrays)
 
 
 class _ErrorCatcher:
-    """Collects the messages of VTK ErrorEvents raised by an object."""
+    """Collects the messages of VTK ErrorEvents raised by an object.
 
-    def __init__(self, obj):
-        self.messages = []
-        obj.AddObserver(vtkCommand.ErrorEvent, self)
+    ``CallDataType`` must be an attribute of the observer itself (not of its
+    ``__call__``) for VTK to pass the message text.
+    """
+
+    CallDataType = "string0"
+
+    def __init__(self, *objects):
+        self.messages: list[str] = []
+        for obj in objects:
+            obj.AddObserver(vtkCommand.ErrorEvent, self)
 
     def __call__(self, caller, event, calldata=None):
-        self.messages.append(str(calldata) if calldata else event)
+        self.messages.append(clean_vtk_message(calldata) if calldata else event)
 
-    __call__.CallDataType = "string0"
+
+def clean_vtk_message(message: str) -> str:
+    """The first line of a VTK error that says something, without file/line and addresses."""
+    lines = [ln.strip() for ln in str(message).splitlines() if ln.strip()]
+    lines = [ln for ln in lines if not re.match(r"^(ERROR|Warning|WARNING): In ", ln)]
+    text = lines[0] if lines else str(message).strip()
+    return re.sub(r"\s*\(0x[0-9a-fA-F]+\)", "", text)
+
+
+@contextmanager
+def _quiet_vtk():
+    """Hold back VTK's global error output (stderr) while the caller raises its own error."""
+    from vtkmodules.vtkCommonCore import vtkLogger, vtkOutputWindow, vtkStringOutputWindow
+
+    previous_window = vtkOutputWindow.GetInstance()
+    previous_verbosity = vtkLogger.GetCurrentVerbosityCutoff()
+    capture = vtkStringOutputWindow()
+    vtkOutputWindow.SetInstance(capture)
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
+    try:
+        yield capture
+    finally:
+        vtkLogger.SetStderrVerbosity(vtkLogger.ConvertToVerbosity(previous_verbosity))
+        vtkOutputWindow.SetInstance(previous_window)
+
+
+def _first_errors(catcher: _ErrorCatcher, capture) -> list[str]:
+    """Error messages of the observed objects, then those only the output window saw."""
+    window = [
+        clean_vtk_message(chunk)
+        for chunk in re.split(r"\n(?=ERROR: In )", capture.GetOutput() or "")
+        if chunk.startswith("ERROR")
+    ]
+    return list(dict.fromkeys(catcher.messages + window))
 
 
 def write_vtp(polydata, path) -> None:
-    """Write ``vtkPolyData`` to an XML ``.vtp`` file (binary, appended)."""
+    """Write ``vtkPolyData`` to an XML ``.vtp`` file (binary, appended).
+
+    Raises ``OSError`` naming the path and the reason.
+    """
     from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
 
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise FileNotFoundError(f"could not write {path}: no such directory {folder}")
+    if os.path.isdir(path):
+        raise IsADirectoryError(f"could not write {path}: it is a directory")
     writer = vtkXMLPolyDataWriter()
-    errors = _ErrorCatcher(writer)
-    writer.SetFileName(os.fspath(path))
+    errors = _ErrorCatcher(writer, writer.GetExecutive())
+    writer.SetFileName(path)
     writer.SetInputData(polydata)
-    if writer.Write() != 1 or errors.messages:
-        raise OSError(f"could not write {path}: {'; '.join(errors.messages) or 'VTK error'}")
+    with _quiet_vtk() as capture:
+        ok = writer.Write()
+    messages = _first_errors(errors, capture)
+    if ok != 1 or messages:
+        raise OSError(f"could not write {path}: {'; '.join(messages) or 'VTK error'}")
 
 
 def read_vtp(path) -> vtkPolyData:
@@ -163,13 +246,13 @@ def read_vtp(path) -> vtkPolyData:
     if not os.path.isfile(path):
         raise FileNotFoundError(f"no such file: {path}")
     reader = vtkXMLPolyDataReader()
-    errors = _ErrorCatcher(reader)
-    errors_exec = _ErrorCatcher(reader.GetExecutive())
+    errors = _ErrorCatcher(reader, reader.GetExecutive())
     reader.SetFileName(path)
-    reader.Update()
-    messages = errors.messages + errors_exec.messages
+    with _quiet_vtk() as capture:
+        reader.Update()
+    messages = _first_errors(errors, capture)
     if messages:
-        raise ValueError(f"could not read {path}: {messages[0].strip()}")
+        raise ValueError(f"could not read {path}: {messages[0]}")
     out = vtkPolyData()
     out.ShallowCopy(reader.GetOutput())
     return out
