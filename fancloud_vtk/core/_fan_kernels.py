@@ -2,9 +2,11 @@
 
 Everything here works on plain arrays; :mod:`fancloud_vtk.core.fans` drives it.
 
-Per point ``p`` the kernel receives a *candidate pool*: neighbour indices in
-order of increasing distance, the first ``k`` of which are the exact ``k``
-nearest neighbours. It then
+Per point ``p`` the kernel works on a *candidate pool*: its exact nearest
+neighbours in order of increasing distance (stage 1 takes them from the
+27 grid cells around ``p``, as far as they are certified, see
+:mod:`._grid_kernels`; stage 2, for the few fans that need more, from wider
+blocks of cells). It then
 
 1. fits the least-squares plane through ``p`` and its ``k`` nearest
    neighbours (smallest eigenvector of the 3x3 covariance),

@@ -91,9 +91,8 @@ def build_fans(
         until it holds ``k`` directions without a gap above ``max_angle``,
         and takes the smallest such subset (containing the newest candidate)
         filled up with the nearest remaining candidates: the farthest fan
-        neighbour is as near as possible. Candidates come first from the
-        neighbours of the ``k`` nearest neighbours, then, for the few fans
-        these cannot close, from the exact nearest neighbours.
+        neighbour is as near as possible. Candidates are always the exact
+        nearest neighbours in order of distance (ties by index).
     rotate_sharp_edges : bool, default: True
         Retry failed fans in the plane rotated by 90 degrees (Figure 5).
     normals : array_like, optional
@@ -106,9 +105,11 @@ def build_fans(
     point_data : dict, optional
         Arrays with one row per point, passed through to the result.
     workers : int, default: -1
-        Threads for the neighbour search (-1: all cores). The fans
-        themselves use numba's threads (``NUMBA_NUM_THREADS``); the result
-        does not depend on the number of threads.
+        Threads for the kd-tree that serves the rare points the uniform grid
+        cannot (outliers, fans still open after the grid search; -1: all
+        cores). Everything else runs on numba's threads
+        (``NUMBA_NUM_THREADS``). The result does not depend on the number of
+        threads.
     progress : callable, optional
         ``progress(fraction, message)``; a true return value cancels.
 
