@@ -155,3 +155,15 @@ def test_check_params_fills_defaults_and_rejects_unknown():
     assert values == {**{p.name: p.default for p in FAN_PARAMS}, "k": 8}
     with pytest.raises(TypeError, match=r"unknown parameter\(s\) \['K', 'angle'\]; known: "):
         check_params(FAN_PARAMS, {"K": 8, "angle": 3})
+
+
+def test_generated_docs_are_up_to_date():
+    """docs/api.md and the accessor stub match the parameter tables and __all__."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parent.parent / "scripts" / "gen_docs.py"
+    done = subprocess.run([sys.executable, str(script), "--check"], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
