@@ -221,3 +221,22 @@ def test_bunny_orientation_in_ranges(monkeypatch, bunny):
     monkeypatch.setattr(fans_module, "ORIENT_RANGE", 2000)
     fc = build_fans(p)
     assert np.mean(np.einsum("ij,ij->i", fc.normals, mesh_normals) > 0) > 0.999
+
+
+def test_same_rings_whatever_the_number_of_threads(monkeypatch):
+    """Bit-identical fans, normals and flags on 1 and on all threads."""
+    import numba
+
+    import fancloud_vtk.core.fans as fans_module
+
+    monkeypatch.setattr(fans_module, "ORIENT_RANGE", 4000)  # several parallel ranges
+    p = np.vstack([sphere(12_000, seed=15), cube_surface(8_000, seed=16) * 0.3 + 3.0])
+    n_threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = build_fans(p, workers=1)
+    finally:
+        numba.set_num_threads(n_threads)
+    many = build_fans(p, workers=-1)
+    for name in ("offsets", "ring", "normals", "open", "rotated"):
+        np.testing.assert_array_equal(getattr(one, name), getattr(many, name), err_msg=name)
