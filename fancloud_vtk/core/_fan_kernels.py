@@ -303,7 +303,6 @@ def _try_plane(points, p, pool, dist, n_sorted, n_avail, m_pool, k, nx, ny, nz, 
         return -1
     # RULE_COVER: grow the prefix; srt holds the prefix sorted by angle, and
     # ``bad`` counts its gaps above max_gap (the cover search needs none)
-    _sort_by_angle(ang, ids, kk, srt)
     bad = 0
     if ang[srt[0]] - ang[srt[kk - 1]] + TWO_PI > max_gap:
         bad += 1

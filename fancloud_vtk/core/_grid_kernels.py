@@ -96,6 +96,7 @@ def build_grid(points, lo, inv_h, expected_cells):
     of the same cell (exact duplicates always share a cell).
     """
     n = points.shape[0]
+    keys = _point_keys(points, lo, inv_h)
     # the table starts at twice the expected number of cells and doubles
     # (starting over) when it gets more than half full
     size = _table_size(max(expected_cells, 8))
@@ -110,8 +111,7 @@ def build_grid(points, lo, inv_h, expected_cells):
         n_cells = 0
         full = False
         for i in range(n):
-            ix, iy, iz = _cell_of(points, i, lo, inv_h)
-            key = _pack(ix, iy, iz)
+            key = keys[i]
             s = _hash(key, mask)
             while tab_key[s] != -1 and tab_key[s] != key:
                 s = (s + 1) & mask
@@ -121,9 +121,9 @@ def build_grid(points, lo, inv_h, expected_cells):
                     break
                 tab_key[s] = key
                 tab_val[s] = n_cells
-                xyz[n_cells, 0] = ix
-                xyz[n_cells, 1] = iy
-                xyz[n_cells, 2] = iz
+                xyz[n_cells, 0] = key & AXIS_MAX
+                xyz[n_cells, 1] = (key >> AXIS_BITS) & AXIS_MAX
+                xyz[n_cells, 2] = key >> (2 * AXIS_BITS)
                 n_cells += 1
             c = tab_val[s]
             cell_of[i] = c
@@ -163,8 +163,25 @@ def build_grid(points, lo, inv_h, expected_cells):
         table[s, 0] = key
         table[s, 1] = r
     # exact duplicates: compare the points within each cell
+    return order, start, cell_xyz, table, _count_duplicates(points, order, start)
+
+
+@njit(cache=True, parallel=True)
+def _point_keys(points, lo, inv_h):
+    n = points.shape[0]
+    keys = np.empty(n, np.int64)
+    for i in prange(n):
+        ix, iy, iz = _cell_of(points, i, lo, inv_h)
+        keys[i] = _pack(ix, iy, iz)
+    return keys
+
+
+@njit(cache=True, parallel=True)
+def _count_duplicates(points, order, start):
+    """Points identical to an earlier point of their cell (duplicates share a cell)."""
+    n_cells = start.shape[0] - 1
     n_dup = 0
-    for r in range(n_cells):
+    for r in prange(n_cells):
         for a in range(start[r] + 1, start[r + 1]):
             i = order[a]
             for b in range(start[r], a):
@@ -173,7 +190,45 @@ def build_grid(points, lo, inv_h, expected_cells):
                         and points[i, 2] == points[j, 2]):
                     n_dup += 1
                     break
-    return order, start, cell_xyz, table, n_dup
+    return n_dup
+
+
+@njit(cache=True, parallel=True)
+def bounds(points):
+    """Per-axis minimum and maximum of an (n, 3) array."""
+    n = points.shape[0]
+    n_chunks = 64
+    lo = np.full((n_chunks, 3), np.inf)
+    hi = np.full((n_chunks, 3), -np.inf)
+    for c in prange(n_chunks):
+        for i in range((n * c) // n_chunks, (n * (c + 1)) // n_chunks):
+            for a in range(3):
+                v = points[i, a]
+                if v < lo[c, a]:
+                    lo[c, a] = v
+                if v > hi[c, a]:
+                    hi[c, a] = v
+    out_lo = np.empty(3)
+    out_hi = np.empty(3)
+    for a in range(3):
+        out_lo[a] = lo[:, a].min()
+        out_hi[a] = hi[:, a].max()
+    return out_lo, out_hi
+
+
+@njit(cache=True, parallel=True)
+def reorder(points, order):
+    """(points[order], inverse permutation of order)."""
+    n = order.shape[0]
+    out = np.empty((n, 3), points.dtype)
+    pos = np.empty(n, np.int64)
+    for s in prange(n):
+        i = order[s]
+        pos[i] = s
+        out[s, 0] = points[i, 0]
+        out[s, 1] = points[i, 1]
+        out[s, 2] = points[i, 2]
+    return out, pos
 
 
 @njit(cache=True)

@@ -311,17 +311,14 @@ class _Grid:
     TARGET_OCCUPANCY = 8
 
     def __init__(self, pts: np.ndarray):
-        self.lo = pts.min(axis=0)
-        extent = float((pts.max(axis=0) - self.lo).max())
+        self.lo, hi = G.bounds(pts)
+        extent = float((hi - self.lo).max())
         self.h = G.cell_size(pts, self.lo, extent, self.TARGET_OCCUPANCY)
         (self.order, self.start, self.cell_xyz, self.table,
          self.n_dup) = G.build_grid(pts, self.lo, 1.0 / self.h,
                                    int(len(pts) / self.TARGET_OCCUPANCY))
         self.n_cells = len(self.start) - 1
-        n = len(pts)
-        self.pos = np.empty(n, np.int64)
-        self.pos[self.order] = np.arange(n, dtype=np.int64)
-        self.sorted_points = pts[self.order]
+        self.sorted_points, self.pos = G.reorder(pts, self.order)
 
     def knn(self, which: np.ndarray, kq: int, tree, workers: int, w_max: int = 3):
         """Exact kq nearest (self excluded) of sorted points ``which``, in order.
