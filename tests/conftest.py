@@ -45,3 +45,13 @@ def bunny():
         np.add.at(vn, f[:, j], tri_n)
     vn /= np.linalg.norm(vn, axis=1)[:, None]
     return p, f, vn
+
+
+def pytest_collection_modifyitems(config, items):
+    """With CI=true, the slow scale variants give way to their quick variants."""
+    if not IN_CI:
+        return
+    skip = pytest.mark.skip(reason="slow scale variant: CI (CI=true) runs the quick variant")
+    for item in items:
+        if "slow" in item.keywords:
+            item.add_marker(skip)

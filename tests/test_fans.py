@@ -240,3 +240,21 @@ def test_same_rings_whatever_the_number_of_threads(monkeypatch):
     many = build_fans(p, workers=-1)
     for name in ("offsets", "ring", "normals", "open", "rotated"):
         np.testing.assert_array_equal(getattr(one, name), getattr(many, name), err_msg=name)
+
+
+@pytest.mark.parametrize(
+    "n", [100_000, pytest.param(1_000_000, marks=pytest.mark.slow)], ids=["100k", "1M"]
+)
+def test_scale_random_closed_surface(n):
+    """Randomly ordered points on a bumpy closed surface: fans closed, normals outward."""
+    rng = np.random.default_rng(17)
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    r = 1.0 + 0.1 * np.sin(5 * d[:, 0]) * np.sin(5 * d[:, 1]) * np.sin(5 * d[:, 2])
+    p = d * r[:, None]
+    fc = build_fans(p)
+    assert fc.n_open <= 0.001 * n
+    assert np.all(fc.fan_sizes[~fc.open] == 6)
+    # outward: the surface is star-shaped around the origin
+    assert np.mean(np.einsum("ij,ij->i", fc.normals, d) > 0) == 1.0
+    assert fc.nbytes() / n <= 150
