@@ -143,15 +143,21 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_demo)
 
-    p = sub.add_parser("bench", help="benchmarks (fancloud bench fans --help)")
+    # the benchmark has its own parser (fancloud_vtk.bench): --help goes to it
+    p = sub.add_parser("bench", help="benchmarks (fancloud bench fans --help)", add_help=False)
     p.add_argument("bench_args", nargs=argparse.REMAINDER, help="benchmark and its options")
     p.set_defaults(func=cmd_bench)
     return parser
 
 
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
     parser = make_parser()
-    args = parser.parse_args(argv)
+    if argv[:1] == ["bench"]:
+        # everything after "bench" (--help too) belongs to the benchmark's parser
+        args = argparse.Namespace(command="bench", func=cmd_bench, bench_args=argv[1:])
+    else:
+        args = parser.parse_args(argv)
 
     def show_warning(message, category, filename, lineno, file=None, line=None):
         # one line naming the problem, not the source line that warned
@@ -161,7 +167,7 @@ def main(argv=None) -> int:
         with warnings.catch_warnings():
             warnings.showwarning = show_warning
             return args.func(args)
-    except (ValueError, TypeError, OSError) as exc:
+    except (ValueError, TypeError, OSError, RuntimeError) as exc:
         print(f"fancloud {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -204,3 +204,12 @@ def test_out_of_range_parameter_exits_2(tmp_path, points, capsys):
     src = write_input(tmp_path, "npy", points)
     rc = main(["fans", str(src), "-o", str(tmp_path / "o.vtp"), "--k", "100"])
     _assert_clean_error(rc, capsys.readouterr().err, "k must be between 3 and 64, got 100")
+
+
+def test_bench_help_lists_the_benchmarks(capsys):
+    from fancloud_vtk.cli import main
+
+    with pytest.raises(SystemExit) as done:
+        main(["bench", "--help"])
+    assert done.value.code == 0
+    assert "fans" in capsys.readouterr().out
