@@ -69,3 +69,29 @@ def test_duplicates_are_counted():
     lo = with_dups.min(axis=0)
     assert G.build_grid(with_dups, lo, 20.0, 100)[-1] == 9
     assert G.build_grid(pts, lo, 20.0, 100)[-1] == 0
+
+
+def test_far_outlier_does_not_make_the_search_quadratic():
+    """A far outlier makes the grid's cells huge; crowded blocks go to the kd-tree."""
+    import time
+
+    from fancloud_vtk import build_fans
+
+    p = np.vstack([sphere(30_000, seed=7), [[1e9, 0.0, 0.0]] + sphere(7, seed=8) * 1e-3])
+    t0 = time.perf_counter()
+    fc = build_fans(p)
+    elapsed = time.perf_counter() - t0
+    assert fc.n_open <= 30, "the sphere's fans are closed as without the outlier"
+    ref = build_fans(p[:30_000])
+    np.testing.assert_array_equal(fc.ring[: ref.offsets[-1]], ref.ring)
+    assert elapsed < 60, f"{elapsed:.1f} s: the search went quadratic"
+
+
+def test_crowded_cell_duplicates_counted_by_sorting():
+    rng = np.random.default_rng(9)
+    base = rng.uniform(size=(500, 3))
+    pts = np.vstack([base, base[:40], base[100:103]])
+    lo = pts.min(axis=0)
+    # one cell holds everything: the sort-based count
+    assert G.build_grid(pts, lo, 0.5, 4)[-1] == 43
+

@@ -482,7 +482,8 @@ def _fan_one(points, p, pool, dist, n_sorted, n_avail, m_pool, k, max_gap, rule,
 
 @njit(cache=True, parallel=True)
 def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, max_gap,
-                   rule, rotate, n_normal, n_sort, n_chunks, ring_tab, counts, status, normals):
+                   rule, rotate, n_normal, n_sort, max_block, n_chunks, ring_tab, counts, status,
+                   normals):
     """Stage 1: fans of the points of cells ``c_lo:c_hi``, neighbours from the grid.
 
     ``points`` are in cell order (see :mod:`._grid_kernels`). Each point's
@@ -508,6 +509,12 @@ def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, ma
         ring_out = np.empty(k, np.int64)
         for c in range(b0, b1):
             m = G.block_size(start, cell_xyz, table, c, 1)
+            if m > max_block:
+                # a crowded block (clustered data, far outliers): stage 2's kd-tree
+                for p in range(start[c], start[c + 1]):
+                    status[p] = STATUS_RETRY
+                    counts[p] = 0
+                continue
             if m > width:
                 width = 2 * m
                 cand = np.empty(width, np.int64)

@@ -182,6 +182,9 @@ def _count_duplicates(points, order, start):
     n_cells = start.shape[0] - 1
     n_dup = 0
     for r in prange(n_cells):
+        if start[r + 1] - start[r] > 16:
+            n_dup += _count_duplicates_sorted(points, order[start[r]:start[r + 1]])
+            continue
         for a in range(start[r] + 1, start[r + 1]):
             i = order[a]
             for b in range(start[r], a):
@@ -190,6 +193,26 @@ def _count_duplicates(points, order, start):
                         and points[i, 2] == points[j, 2]):
                     n_dup += 1
                     break
+    return n_dup
+
+
+@njit(cache=True)
+def _count_duplicates_sorted(points, idx):
+    """Duplicates among points[idx] by a lexicographic sort (for crowded cells)."""
+    m = idx.shape[0]
+    o = np.argsort(points[idx, 2], kind="mergesort")
+    for a in (1, 0):
+        key = np.empty(m)
+        for t in range(m):
+            key[t] = points[idx[o[t]], a]
+        o = o[np.argsort(key, kind="mergesort")]
+    n_dup = 0
+    for t in range(1, m):
+        i = idx[o[t]]
+        j = idx[o[t - 1]]
+        if points[i, 0] == points[j, 0] and points[i, 1] == points[j, 1] \
+                and points[i, 2] == points[j, 2]:
+            n_dup += 1
     return n_dup
 
 
@@ -379,13 +402,14 @@ def select_sorted(pool, dist, lo, hi, m):
 
 @njit(cache=True, parallel=True)
 def knn_grid(points, lo, h, start, cell_xyz, table, cell_of_sorted, which, kq,
-             w_max, out):
+             w_max, max_block, out):
     """Exact ``kq`` nearest neighbours (self excluded) of the points ``which``.
 
     ``points`` are in cell order and ``cell_of_sorted[i]`` is the cell of
     point ``i``. Writes ``out[j, :kq]`` in order of distance (ties by index)
     and returns a bool array: False where ``w_max`` rings of cells did not
-    certify ``kq`` neighbours (the caller uses another search there).
+    certify ``kq`` neighbours, or held more than ``max_block`` points (the
+    caller uses another search there).
     """
     nq = which.shape[0]
     ok = np.zeros(nq, np.bool_)
@@ -402,6 +426,8 @@ def knn_grid(points, lo, h, start, cell_xyz, table, cell_of_sorted, which, kq,
             c = cell_of_sorted[p]
             for w in range(1, w_max + 1):
                 m = block_size(start, cell_xyz, table, c, w)
+                if m > max_block:
+                    break  # a crowded block: the caller's kd-tree is faster
                 if m > cap:
                     cap = 2 * m
                     cand = np.empty(cap, np.int64)

@@ -178,7 +178,7 @@ def build_fans(
         K.fans_from_grid(sp, grid.lo, grid.h, grid.start, grid.cell_xyz, grid.table,
                          (n_cells * b) // n_blocks, (n_cells * (b + 1)) // n_blocks,
                          k, cap, max_gap, rule_id, rotate_sharp_edges, n_normal,
-                         n_normal + k // 2, 4 * numba.get_num_threads(),
+                         n_normal + k // 2, grid.MAX_BLOCK, 4 * numba.get_num_threads(),
                          ring_tab, counts, status, normals_s)
         _report(progress, 0.05 + 0.75 * (b + 1) / n_blocks, "fans")
 
@@ -309,6 +309,10 @@ class _Grid:
     #: about 2k = 12 nearest neighbours and the candidates the angle
     #: criterion usually needs
     TARGET_OCCUPANCY = 8
+    #: a block of cells with more points than this (a dense cluster in a
+    #: cloud with far outliers, whose cells the 21-bit grid cannot make
+    #: small enough) goes to a kd-tree instead: never quadratic work
+    MAX_BLOCK = 4096
 
     def __init__(self, pts: np.ndarray):
         self.lo, hi = G.bounds(pts)
@@ -330,7 +334,7 @@ class _Grid:
         cell_of = np.repeat(np.arange(self.n_cells, dtype=np.int64), np.diff(self.start))
         out = np.full((len(which), kq), -1, np.int64)
         ok = G.knn_grid(self.sorted_points, self.lo, self.h, self.start, self.cell_xyz,
-                        self.table, cell_of, which, kq, w_max, out)
+                        self.table, cell_of, which, kq, w_max, self.MAX_BLOCK, out)
         if not ok.all():
             bad = np.flatnonzero(~ok)
             if tree is None:
