@@ -15,7 +15,11 @@ def render_fancloud(fc, path: str, title: str = "") -> None:
     """Offscreen picture: the shaded fan cloud and, beside it, its open fans in red."""
     import numpy as np
     import pyvista as pv
+    from vtkmodules.vtkCommonCore import vtkLogger
 
+    # without a display VTK warns "bad X server connection" and renders
+    # offscreen all the same: keep errors, drop that warning
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
     mesh = fc.to_pyvista()
     pl = pv.Plotter(off_screen=True, shape=(1, 2), window_size=(1400, 700), border=False)
     pl.subplot(0, 0)
