@@ -7,6 +7,7 @@ those.
 """
 
 from .core.fans import Cancelled, DuplicatePointsWarning, build_fans
+from .core.mesh import TriangleMesh, fan_cloud_to_mesh
 from .core.model import FanCloud, find_color_array
 from .core.validation import FanCloudInputError
 
@@ -17,6 +18,8 @@ __all__ = [
     "DuplicatePointsWarning",
     "FanCloud",
     "FanCloudInputError",
+    "TriangleMesh",
     "build_fans",
+    "fan_cloud_to_mesh",
     "find_color_array",
 ]

@@ -1,0 +1,691 @@
+"""Numba kernels of the triangle mesh from a fan cloud (paper section 4).
+
+:mod:`fancloud_vtk.core.mesh` drives them. Triangles are rows of vertex
+indices; an undirected edge ``(u, v)`` with ``u < v`` is packed as
+``u * n + v`` and numbered by its rank among the sorted packed edges.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True)
+def _find_sorted(keys, x):
+    """Index of x in the sorted array keys, or -1."""
+    i = np.searchsorted(keys, x)
+    if i < keys.shape[0] and keys[i] == x:
+        return i
+    return -1
+
+
+@njit(cache=True)
+def _tri_key(a, b, c, n):
+    if a > b:
+        a, b = b, a
+    if b > c:
+        b, c = c, b
+    if a > b:
+        a, b = b, a
+    return (a * n + b) * n + c
+
+
+@njit(cache=True)
+def _opposite(points, normals, x, y, u, v):
+    """Whether u and v lie on opposite sides of the line x y, seen along the normals."""
+    nx = normals[x, 0] + normals[y, 0]
+    ny = normals[x, 1] + normals[y, 1]
+    nz = normals[x, 2] + normals[y, 2]
+    ex = points[y, 0] - points[x, 0]
+    ey = points[y, 1] - points[x, 1]
+    ez = points[y, 2] - points[x, 2]
+    # side of w: sign of (e x (w - x)) . n
+    su = 0.0
+    sv = 0.0
+    for k in range(2):
+        w = u if k == 0 else v
+        wx = points[w, 0] - points[x, 0]
+        wy = points[w, 1] - points[x, 1]
+        wz = points[w, 2] - points[x, 2]
+        cx = ey * wz - ez * wy
+        cy = ez * wx - ex * wz
+        cz = ex * wy - ey * wx
+        d = cx * nx + cy * ny + cz * nz
+        if k == 0:
+            su = d
+        else:
+            sv = d
+    return su * sv < 0.0
+
+
+@njit(cache=True)
+def find_quads(points, normals, tri, sorted_keys, key_order, edge_uv, edge_off, edge_tri, n):
+    """Quadrilaterals covered by both diagonals' triangulations.
+
+    For every edge (x, y) with two triangles x y u and x y v on it, the
+    triangles u v x and u v y of the other diagonal are looked up by their
+    packed vertex sets (``sorted_keys``, the packed keys in increasing order;
+    ``key_order`` the triangle of each). Returns rows ``(t_xyu, t_xyv,
+    t_uvx, t_uvy)`` with -1 for a missing triangle, for every quad where at
+    least one of the other diagonal's triangles exists, and u and v lie on
+    opposite sides of x y (a real quadrilateral, not two triangles folded
+    onto each other).
+    """
+    n_edges = edge_uv.shape[0]
+    cap = 1024
+    out = np.empty((cap, 4), np.int64)
+    m = 0
+    for e in range(n_edges):
+        x = edge_uv[e, 0]
+        y = edge_uv[e, 1]
+        for i in range(edge_off[e], edge_off[e + 1]):
+            t1 = edge_tri[i]
+            u = tri[t1, 0] + tri[t1, 1] + tri[t1, 2] - x - y
+            for j in range(i + 1, edge_off[e + 1]):
+                t2 = edge_tri[j]
+                v = tri[t2, 0] + tri[t2, 1] + tri[t2, 2] - x - y
+                if u == v or not _opposite(points, normals, x, y, u, v):
+                    continue
+                t3 = _find_sorted(sorted_keys, _tri_key(u, v, x, n))
+                t4 = _find_sorted(sorted_keys, _tri_key(u, v, y, n))
+                if t3 >= 0:
+                    t3 = key_order[t3]
+                if t4 >= 0:
+                    t4 = key_order[t4]
+                if t3 < 0 and t4 < 0:
+                    continue
+                if m == cap:
+                    bigger = np.empty((2 * cap, 4), np.int64)
+                    bigger[:m] = out[:m]
+                    out = bigger
+                    cap *= 2
+                out[m, 0] = t1
+                out[m, 1] = t2
+                out[m, 2] = t3
+                out[m, 3] = t4
+                m += 1
+    return out[:m]
+
+
+@njit(cache=True)
+def resolve_quads(quads, count, quality, alive, partial):
+    """Keep one triangulation of each doubly covered quadrilateral (``alive`` updated).
+
+    A diagonal whose two triangles both exist beats one with a single
+    triangle; between two complete diagonals, the one more fans agree on
+    (summed counts) wins, then the better-shaped one (larger smallest
+    angle). Quads are visited in order; one whose triangles were already
+    removed by an earlier decision is re-evaluated with what is left.
+    Returns the number of triangles removed.
+    """
+    removed = 0
+    for r in range(quads.shape[0]):
+        a1 = quads[r, 0]
+        a2 = quads[r, 1]
+        b1 = quads[r, 2]
+        b2 = quads[r, 3]
+        a_full = alive[a1] and alive[a2]
+        b_has1 = b1 >= 0 and alive[b1]
+        b_has2 = b2 >= 0 and alive[b2]
+        if not (b_has1 or b_has2):
+            continue
+        if not a_full:
+            continue  # the first diagonal already lost a triangle: nothing doubly covered
+        b_full = b_has1 and b_has2
+        if not b_full and not partial:
+            continue
+        keep_a = True
+        if b_full:
+            sa = count[a1] + count[a2]
+            sb = count[b1] + count[b2]
+            if sb > sa:
+                keep_a = False
+            elif sb == sa:
+                qa = min(quality[a1], quality[a2])
+                qb = min(quality[b1], quality[b2])
+                if qb > qa:
+                    keep_a = False
+        if keep_a:
+            if b_has1:
+                alive[b1] = False
+                removed += 1
+            if b_has2:
+                alive[b2] = False
+                removed += 1
+        else:
+            alive[a1] = False
+            alive[a2] = False
+            removed += 2
+    return removed
+
+
+# -- growing a 2-manifold ---------------------------------------------------
+
+@njit(cache=True)
+def _heap_push(hk, hv, size, key, val):
+    i = size
+    hk[i] = key
+    hv[i] = val
+    while i > 0:
+        parent = (i - 1) // 2
+        if hk[parent] < hk[i] or (hk[parent] == hk[i] and hv[parent] < hv[i]):
+            break
+        hk[parent], hk[i] = hk[i], hk[parent]
+        hv[parent], hv[i] = hv[i], hv[parent]
+        i = parent
+    return size + 1
+
+
+@njit(cache=True)
+def _heap_pop(hk, hv, size):
+    val = hv[0]
+    size -= 1
+    hk[0] = hk[size]
+    hv[0] = hv[size]
+    i = 0
+    while True:
+        a = 2 * i + 1
+        b = a + 1
+        best = i
+        if a < size and (hk[a] < hk[best] or (hk[a] == hk[best] and hv[a] < hv[best])):
+            best = a
+        if b < size and (hk[b] < hk[best] or (hk[b] == hk[best] and hv[b] < hv[best])):
+            best = b
+        if best == i:
+            break
+        hk[best], hk[i] = hk[i], hk[best]
+        hv[best], hv[i] = hv[i], hv[best]
+        i = best
+    return val, size
+
+
+@njit(cache=True)
+def _angle_at(points, normals, v, w):
+    """Angle of w around v in v's tangent plane."""
+    nx, ny, nz = normals[v, 0], normals[v, 1], normals[v, 2]
+    if abs(nx) < 0.9:
+        ux, uy, uz = 0.0, nz, -ny
+    else:
+        ux, uy, uz = -nz, 0.0, nx
+    s = np.sqrt(ux * ux + uy * uy + uz * uz)
+    ux /= s
+    uy /= s
+    uz /= s
+    vx = ny * uz - nz * uy
+    vy = nz * ux - nx * uz
+    vz = nx * uy - ny * ux
+    dx = points[w, 0] - points[v, 0]
+    dy = points[w, 1] - points[v, 1]
+    dz = points[w, 2] - points[v, 2]
+    return np.arctan2(dx * vx + dy * vy + dz * vz, dx * ux + dy * uy + dz * uz)
+
+
+@njit(cache=True)
+def _in_gap(points, normals, v, a, b, v_edge_off, v_edges, edge_uv, edge_used, edge_fwd):
+    """Whether the corner (v, a, b) lies in a gap of the triangles around v.
+
+    Seen along v's normal, a gap runs counter-clockwise from a boundary edge
+    entering v to the next boundary edge leaving it. The corner, from a to
+    b counter-clockwise, must fit in one (touching its ends is fine).
+    """
+    two_pi = 2.0 * np.pi
+    n_in = 0
+    for i in range(v_edge_off[v], v_edge_off[v + 1]):
+        e = v_edges[i]
+        if edge_used[e] == 1 and (edge_uv[e, 0] == v) != (edge_fwd[e] == 1):
+            n_in += 1
+    if n_in == 0:
+        return True  # no gap: the edge checks decide
+    ang_a = _angle_at(points, normals, v, a)
+    ang_b = _angle_at(points, normals, v, b)
+    for i in range(v_edge_off[v], v_edge_off[v + 1]):
+        e = v_edges[i]
+        if edge_used[e] != 1 or (edge_uv[e, 0] == v) == (edge_fwd[e] == 1):
+            continue
+        w_in = edge_uv[e, 1] if edge_uv[e, 0] == v else edge_uv[e, 0]
+        base = _angle_at(points, normals, v, w_in)
+        # the gap ends at the first leaving boundary edge counter-clockwise
+        dout = two_pi
+        w_out = -1
+        for k in range(v_edge_off[v], v_edge_off[v + 1]):
+            f = v_edges[k]
+            if edge_used[f] != 1 or (edge_uv[f, 0] == v) != (edge_fwd[f] == 1):
+                continue
+            w = edge_uv[f, 1] if edge_uv[f, 0] == v else edge_uv[f, 0]
+            d = (_angle_at(points, normals, v, w) - base) % two_pi
+            if w == w_in:
+                d = two_pi
+            if d <= dout:
+                dout = d
+                w_out = w
+        if a == w_in and b == w_out:
+            return True  # it closes the gap
+        da = 0.0 if a == w_in else (ang_a - base) % two_pi
+        db = dout if b == w_out else (ang_b - base) % two_pi
+        if da < db <= dout:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _try_add(t, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, pinch, flip, points,
+             normals, v_edge_off, v_edges):
+    """Whether triangle t can join the mesh, and with which orientation.
+
+    ``tri[t]`` is its preferred orientation; ``edge_fwd[e]`` is 1 when the
+    accepted triangle on edge e runs from its smaller to its larger vertex.
+    Returns 0 (no), 1 (as it is) or 2 (reversed; only with ``flip``: the
+    candidates are oriented by consistent normals, so a triangle that would
+    have to turn over to fit folds onto the mesh). Conditions: no edge gets a
+    third triangle; every edge shared with the mesh is run in the opposite
+    direction (consistent orientation); every vertex already in the mesh is
+    reached through an edge already in the mesh (else it would get a second
+    fan of triangles: a non-manifold vertex). With ``pinch``, a vertex on
+    the mesh boundary may also be touched by a corner only, when the
+    triangle shares an edge elsewhere and lies in the vertex's gap (seen
+    along its normal): two fronts meeting at a vertex, whose gap the
+    following triangles usually fill (what they leave is cut off afterwards,
+    see :func:`split_pinched`).
+    """
+    want = 0  # 0 undecided, 1 as is, 2 reversed
+    for j in range(3):
+        e = tri_edge[t, j]
+        if edge_used[e] >= 2:
+            return 0
+        if edge_used[e] == 1:
+            a = tri[t, j]
+            fwd_here = a == edge_uv[e, 0]  # this triangle as is runs u -> v
+            # consistent: the new triangle must run the edge the other way
+            need = 2 if fwd_here == (edge_fwd[e] == 1) else 1
+            if need == 2 and not flip:
+                return 0  # it would have to turn over: it folds onto the mesh
+            if want == 0:
+                want = need
+            elif want != need:
+                return 0
+    for j in range(3):
+        v = tri[t, j]
+        if v_count[v] == 0:
+            continue
+        e_in = tri_edge[t, (j + 2) % 3]  # edge (prev, v)
+        e_out = tri_edge[t, j]  # edge (v, next)
+        if edge_used[e_in] == 0 and edge_used[e_out] == 0:
+            if not (pinch and want != 0 and v_bnd[v] > 0):
+                return 0
+        # the corner at v must lie in the gap of v's triangles (no overlap)
+        if v_bnd[v] > 0 and not _in_gap(points, normals, v, tri[t, (j + 1) % 3],
+                                        tri[t, (j + 2) % 3], v_edge_off, v_edges, edge_uv,
+                                        edge_used, edge_fwd):
+            return 0
+    if want == 0:
+        want = 1
+    return want
+
+
+@njit(cache=True)
+def _accept(t, how, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, out_tri):
+    if how == 2:
+        a, b, c = tri[t, 0], tri[t, 2], tri[t, 1]
+    else:
+        a, b, c = tri[t, 0], tri[t, 1], tri[t, 2]
+    out_tri[t, 0] = a
+    out_tri[t, 1] = b
+    out_tri[t, 2] = c
+    for j in range(3):
+        e = tri_edge[t, j]
+        if edge_used[e] == 0:
+            s = tri[t, j] if how == 1 else tri[t, (j + 1) % 3]
+            edge_fwd[e] = 1 if s == edge_uv[e, 0] else 0
+            v_bnd[edge_uv[e, 0]] += 1
+            v_bnd[edge_uv[e, 1]] += 1
+        else:
+            v_bnd[edge_uv[e, 0]] -= 1
+            v_bnd[edge_uv[e, 1]] -= 1
+        edge_used[e] += 1
+        v_count[tri[t, j]] += 1
+
+
+@njit(cache=True)
+def grow_manifold(tri, alive, priority, tri_edge, edge_uv, edge_off, edge_tri, n, pinch, points,
+                  normals, v_edge_off, v_edges):
+    """Grow a consistently oriented 2-manifold from the candidate triangles.
+
+    Starting from the best triangle (lowest ``priority``), candidates that
+    share an edge with the mesh join one at a time in order of priority,
+    whenever :func:`_try_add` allows them; a candidate refused because a
+    vertex would become non-manifold is looked at again when the mesh
+    around it changes. When nothing more can join, the best candidate whose
+    vertices are all new seeds another piece. Returns (accepted, out_tri):
+    the accepted mask and the triangles in their final orientation.
+    """
+    m = tri.shape[0]
+    n_edges = edge_uv.shape[0]
+    edge_used = np.zeros(n_edges, np.int64)
+    edge_fwd = np.zeros(n_edges, np.int64)
+    v_count = np.zeros(n, np.int64)
+    v_bnd = np.zeros(n, np.int64)  # boundary edges (one triangle) at each vertex
+    accepted = np.zeros(m, np.bool_)
+    dead = ~alive.copy()
+    out_tri = tri.copy()
+    cap = 16 * m + 16
+    hk = np.empty(cap, np.float64)
+    hv = np.empty(cap, np.int64)
+    size = 0
+    seeds = np.argsort(priority, kind="mergesort")
+    s_next = 0
+    while True:
+        if size == 0:
+            # a new seed: the best live candidate whose vertices are all new
+            while s_next < m:
+                t = seeds[s_next]
+                s_next += 1
+                if dead[t] or accepted[t]:
+                    continue
+                if v_count[tri[t, 0]] == 0 and v_count[tri[t, 1]] == 0 \
+                        and v_count[tri[t, 2]] == 0:
+                    size = _heap_push(hk, hv, size, priority[t], t)
+                    break
+            if size == 0:
+                break
+        t, size = _heap_pop(hk, hv, size)
+        if dead[t] or accepted[t]:
+            continue
+        how = _try_add(t, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, pinch,
+                       False, points, normals, v_edge_off, v_edges)
+        if how == 0:
+            # refused for good when an edge is full; else it may fit later
+            for j in range(3):
+                if edge_used[tri_edge[t, j]] >= 2:
+                    dead[t] = True
+            continue
+        _accept(t, how, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, out_tri)
+        accepted[t] = True
+        # the candidates on its edges (and around its vertices' edges) may join now
+        for j in range(3):
+            e = tri_edge[t, j]
+            for i in range(edge_off[e], edge_off[e + 1]):
+                c = edge_tri[i]
+                if c != t and not dead[c] and not accepted[c] and size < cap:
+                    size = _heap_push(hk, hv, size, priority[c], c)
+    return accepted, out_tri
+
+
+# -- Delaunay rings ----------------------------------------------------------
+
+@njit(cache=True)
+def _hull_ring(xs, ys, m, idx, order, hull, origin_inside):
+    """Vertices of the convex hull of (xs, ys)[:m], counter-clockwise, into hull.
+
+    Andrew's monotone chain (strict turns: collinear points dropped).
+    Returns the number of hull vertices; with ``origin_inside``, -1 when
+    the origin is not strictly inside the hull.
+    """
+    for i in range(m):
+        order[i] = i
+    for i in range(1, m):  # insertion sort by (x, y, index)
+        v = order[i]
+        j = i - 1
+        while j >= 0 and (xs[order[j]] > xs[v] or (xs[order[j]] == xs[v] and (
+                ys[order[j]] > ys[v] or (ys[order[j]] == ys[v] and idx[order[j]] > idx[v])))):
+            order[j + 1] = order[j]
+            j -= 1
+        order[j + 1] = v
+    h = 0
+    for t in range(m):  # lower hull
+        i = order[t]
+        while h >= 2:
+            a = hull[h - 2]
+            b = hull[h - 1]
+            if (xs[b] - xs[a]) * (ys[i] - ys[a]) - (ys[b] - ys[a]) * (xs[i] - xs[a]) > 0.0:
+                break
+            h -= 1
+        hull[h] = i
+        h += 1
+    lower = h + 1
+    for t in range(m - 2, -1, -1):  # upper hull
+        i = order[t]
+        while h >= lower:
+            a = hull[h - 2]
+            b = hull[h - 1]
+            if (xs[b] - xs[a]) * (ys[i] - ys[a]) - (ys[b] - ys[a]) * (xs[i] - xs[a]) > 0.0:
+                break
+            h -= 1
+        hull[h] = i
+        h += 1
+    h -= 1  # the first point closes the chain
+    if h < 3:
+        return -1
+    if not origin_inside:
+        return h
+    for t in range(h):  # the origin strictly inside
+        a = hull[t]
+        b = hull[(t + 1) % h]
+        if xs[a] * ys[b] - ys[a] * xs[b] <= 0.0:
+            return -1
+    return h
+
+
+@njit(cache=True)
+def _delaunay_ring(points, normals, offsets, ring, is_open, p, max_ring, cand, xs, ys, order,
+                   hull, out):
+    """Write p's local Delaunay ring to out; return its size, or -1 (keep the fan's ring)."""
+    cap = cand.shape[0]
+    m = 0
+    for a in range(offsets[p], offsets[p + 1]):
+        q = ring[a]
+        for b in range(offsets[q] - 1, offsets[q + 1]):
+            s = q if b < offsets[q] else ring[b]
+            if s == p:
+                continue
+            dup = False
+            for c in range(m):
+                if cand[c] == s:
+                    dup = True
+                    break
+            if not dup and m < cap - 1:
+                cand[m] = s
+                m += 1
+    nx, ny, nz = normals[p, 0], normals[p, 1], normals[p, 2]
+    if abs(nx) < 0.9:
+        ux, uy, uz = 0.0, nz, -ny
+    else:
+        ux, uy, uz = -nz, 0.0, nx
+    s = np.sqrt(ux * ux + uy * uy + uz * uz)
+    ux /= s
+    uy /= s
+    uz /= s
+    vx = ny * uz - nz * uy
+    vy = nz * ux - nx * uz
+    vz = nx * uy - ny * ux
+    mm = 0
+    for c in range(m):
+        q = cand[c]
+        dx = points[q, 0] - points[p, 0]
+        dy = points[q, 1] - points[p, 1]
+        dz = points[q, 2] - points[p, 2]
+        x = dx * ux + dy * uy + dz * uz
+        y = dx * vx + dy * vy + dz * vz
+        r2 = x * x + y * y
+        if r2 <= 0.0:
+            continue
+        cand[mm] = q
+        xs[mm] = x / r2
+        ys[mm] = y / r2
+        mm += 1
+    if is_open:
+        # p on the boundary: its Voronoi cell is unbounded, and its neighbours
+        # are the hull vertices of the inversions and of p itself, in order
+        # from just after p round to just before it (an open fan)
+        # p itself, nudged a hair outward (away from the candidates) so that it
+        # stays a hull vertex where the boundary is straight (collinear)
+        if mm == 0:
+            return -1
+        sx = 0.0
+        sy = 0.0
+        scale = 0.0
+        for c in range(mm):
+            sx += xs[c]
+            sy += ys[c]
+            scale = max(scale, abs(xs[c]) + abs(ys[c]))
+        s = np.sqrt(sx * sx + sy * sy)
+        cand[mm] = -1
+        if s > 0.0:
+            xs[mm] = -1e-9 * scale * sx / s
+            ys[mm] = -1e-9 * scale * sy / s
+        else:
+            xs[mm] = 0.0
+            ys[mm] = 0.0
+        h = _hull_ring(xs, ys, mm + 1, cand, order, hull, False)
+        at = -1
+        for t in range(h):
+            if cand[hull[t]] == -1:
+                at = t
+        if at < 0 or h < 3 or h - 1 > max_ring:
+            return -1
+        for t in range(h - 1):
+            out[t] = cand[hull[(at + 1 + t) % h]]
+        return h - 1
+    h = _hull_ring(xs, ys, mm, cand, order, hull, True)
+    if h < 3 or h > max_ring:
+        return -1
+    # start at the hull vertex with the smallest point index (deterministic)
+    first = 0
+    for t in range(1, h):
+        if cand[hull[t]] < cand[hull[first]]:
+            first = t
+    for t in range(h):
+        out[t] = cand[hull[(first + t) % h]]
+    return h
+
+
+@njit(cache=True, parallel=True)
+def delaunay_rings(points, normals, offsets, ring, is_open, max_ring):
+    """Each closed fan's ring replaced by its local Delaunay ring.
+
+    The candidates of point p are its fan neighbours and theirs (two rings
+    of the fan cloud: no neighbour search). Projected into p's tangent
+    plane, p's neighbours in their Delaunay triangulation are the points
+    whose inversions ``q / |q|^2`` lie on the convex hull of all
+    inversions, in counter-clockwise order (the polar dual of p's Voronoi
+    cell). Neighbouring points then mostly agree on their triangles. An
+    open fan (a boundary point, unbounded cell) gets the hull vertices of
+    the inversions and p itself, in order from just after p: an open
+    Delaunay fan. A closed fan whose candidates do not surround it keeps
+    its ring. Returns (counts, table): ``table[p, :counts[p]]`` the new
+    ring.
+    """
+    n = points.shape[0]
+    counts = np.zeros(n, np.int64)
+    table = np.full((n, max_ring), -1, np.int64)
+    n_chunks = min(n, 256)
+    for ch in prange(n_chunks):
+        cap = 256
+        cand = np.empty(cap, np.int64)
+        xs = np.empty(cap)
+        ys = np.empty(cap)
+        order = np.empty(cap, np.int64)
+        hull = np.empty(cap + 1, np.int64)
+        for p in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
+            h = _delaunay_ring(points, normals, offsets, ring, is_open[p], p, max_ring, cand, xs,
+                               ys, order, hull, table[p])
+            if h < 0:  # keep the fan's own ring
+                h = offsets[p + 1] - offsets[p]
+                for a in range(h):
+                    table[p, a] = ring[offsets[p] + a]
+            counts[p] = h
+    return counts, table
+
+
+@njit(cache=True)
+def _root(parent, x):
+    while parent[x] != x:
+        parent[x] = parent[parent[x]]
+        x = parent[x]
+    return x
+
+
+@njit(cache=True)
+def split_pinched(triangles, keep, n):
+    """Cut non-manifold vertices: keep only the largest fan of triangles around each.
+
+    A vertex whose triangles form several edge-connected fans (two fronts
+    that met at a corner and never closed the gap between them) keeps its
+    largest fan (ties: the one with the lowest triangle number); the other
+    triangles are dropped (``keep`` updated), leaving small holes for the
+    hole closing. Repeats until no vertex is pinched (dropping a triangle
+    can split another vertex's fan). Returns the number dropped.
+    """
+    m = triangles.shape[0]
+    dropped = 0
+    while True:
+        # vertex -> kept triangles (CSR)
+        deg = np.zeros(n + 1, np.int64)
+        for t in range(m):
+            if keep[t]:
+                for j in range(3):
+                    deg[triangles[t, j] + 1] += 1
+        for v in range(n):
+            deg[v + 1] += deg[v]
+        fill = deg[:-1].copy()
+        vt = np.empty(deg[n], np.int64)
+        for t in range(m):
+            if keep[t]:
+                for j in range(3):
+                    v = triangles[t, j]
+                    vt[fill[v]] = t
+                    fill[v] += 1
+        changed = 0
+        parent = np.empty(64, np.int64)
+        size = np.empty(64, np.int64)
+        for v in range(n):
+            a0 = deg[v]
+            a1 = deg[v + 1]
+            k = a1 - a0
+            if k < 2:
+                continue
+            if k > parent.shape[0]:
+                parent = np.empty(2 * k, np.int64)
+                size = np.empty(2 * k, np.int64)
+            for i in range(k):
+                parent[i] = i
+            # triangles around v sharing an edge (v, w) are in one fan
+            for i in range(k):
+                ti = vt[a0 + i]
+                for j in range(i + 1, k):
+                    tj = vt[a0 + j]
+                    shared = 0
+                    for x in range(3):
+                        w = triangles[ti, x]
+                        if w == v:
+                            continue
+                        for y in range(3):
+                            if triangles[tj, y] == w:
+                                shared += 1
+                    if shared > 0:
+                        ri = _root(parent, i)
+                        rj = _root(parent, j)
+                        if ri != rj:
+                            parent[max(ri, rj)] = min(ri, rj)
+            n_roots = 0
+            for i in range(k):
+                size[i] = 0
+            for i in range(k):
+                r = _root(parent, i)
+                size[r] += 1
+            for i in range(k):
+                if size[i] > 0:
+                    n_roots += 1
+            if n_roots < 2:
+                continue
+            best = -1
+            for i in range(k):
+                if size[i] > 0 and (best < 0 or size[i] > size[best]):
+                    best = i
+            for i in range(k):
+                if _root(parent, i) != best:
+                    keep[vt[a0 + i]] = False
+                    changed += 1
+        dropped += changed
+        if changed == 0:
+            return dropped

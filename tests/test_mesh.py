@@ -1,0 +1,148 @@
+"""Triangle mesh from a fan cloud (paper section 4): closed 2-manifolds with exact counts."""
+
+import numpy as np
+import pytest
+from conftest import fingerprint
+from scipy.spatial import cKDTree
+from shapes import cube_surface, distance_to_cube, flat_patch, sphere, torus
+
+from fancloud_vtk import FanCloud, build_fans, fan_cloud_to_mesh
+from fancloud_vtk.core.mesh_stats import boundary_loops
+
+
+def _closed_manifold(mesh, n):
+    s = mesh.stats
+    assert s["boundary_edges"] == 0
+    assert s["holes"] == 0
+    assert s["non_manifold_edges"] == 0
+    assert s["non_manifold_vertices"] == 0
+    assert s["inconsistent_edges"] == 0
+    assert s["unused_points"] == 0, "every point is used"
+    assert s["components"] == 1
+    assert np.array_equal(np.unique(mesh.triangles), np.arange(n))
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_sphere_is_a_closed_genus_0_manifold(seed):
+    n = 20_000
+    p = sphere(n, seed=seed)
+    fc = build_fans(p)
+    mesh = fan_cloud_to_mesh(fc)
+    _closed_manifold(mesh, n)
+    assert mesh.stats["euler_characteristic"] == 2
+    assert mesh.n_triangles == 2 * n - 4
+    assert mesh.stats["self_intersections"] <= 0.0001 * mesh.n_triangles
+    # oriented outward, like the normals
+    t = mesh.triangles
+    a, b, c = p[t[:, 0]], p[t[:, 1]], p[t[:, 2]]
+    assert np.all(np.einsum("ij,ij->i", np.cross(b - a, c - a), a + b + c) > 0)
+
+
+def test_torus_is_a_closed_genus_1_manifold():
+    n = 20_000
+    p = torus(n, seed=3)
+    mesh = fan_cloud_to_mesh(build_fans(p))
+    _closed_manifold(mesh, n)
+    assert mesh.stats["euler_characteristic"] == 0
+    assert mesh.n_triangles == 2 * n
+
+
+def test_stage_counts_shrink_as_in_the_paper():
+    mesh = fan_cloud_to_mesh(build_fans(sphere(10_000, seed=4)))
+    s = mesh.stats
+    assert s["fan_triangles"] >= s["distinct"] >= s["after_superfluous"] >= s["grown"]
+    assert s["final"] == mesh.n_triangles
+    per_point = {k: s[k] / 10_000 for k in ("distinct", "after_superfluous")}
+    assert 2.0 < per_point["distinct"] < 2.7  # the paper: about 2.5
+    assert 2.0 < per_point["after_superfluous"] < 2.3  # the paper: about 2.1
+
+
+def test_flat_patch_has_one_boundary_loop_and_no_holes():
+    pts, on_border = flat_patch(20_000, 800, seed=5)
+    mesh = fan_cloud_to_mesh(build_fans(pts))
+    s = mesh.stats
+    assert s["non_manifold_edges"] == 0 and s["non_manifold_vertices"] == 0
+    assert s["inconsistent_edges"] == 0
+    assert s["holes"] == 1, "the patch's border is the only boundary loop"
+    (loop,) = boundary_loops(mesh.triangles)
+    # the boundary runs along the border (where the fans are open)
+    spacing = np.sqrt(1.0 / 20_000)
+    dist = np.minimum.reduce([pts[:, 0], pts[:, 1], 1 - pts[:, 0], 1 - pts[:, 1]])
+    assert dist[loop].max() < 3 * spacing
+    assert on_border[loop].mean() > 0.8
+    assert s["self_intersections"] == 0
+
+
+def test_cube_closed_and_no_triangle_bridges_a_face():
+    n = 30_000
+    p = cube_surface(n, seed=6)
+    mesh = fan_cloud_to_mesh(build_fans(p))
+    s = mesh.stats
+    assert s["boundary_edges"] == 0 and s["holes"] == 0
+    assert s["non_manifold_edges"] == 0 and s["non_manifold_vertices"] == 0
+    spacing = np.sqrt(24.0 / n)
+    centroid = p[mesh.triangles].mean(axis=1)
+    assert distance_to_cube(centroid).max() < 1.5 * spacing
+
+
+def test_bunny_mesh_is_closed_and_near_the_original(bunny):
+    p, faces, _ = bunny
+    fc = build_fans(p)
+    mesh = fan_cloud_to_mesh(fc)
+    s = mesh.stats
+    assert s["non_manifold_edges"] == 0 and s["non_manifold_vertices"] == 0
+    assert s["unused_points"] == 0
+    assert s["holes"] == 0, f"{s['holes']} boundary loops on the closed bunny"
+    assert mesh.n_triangles == 2 * len(p) - 4 == len(faces)
+    # distance to the original mesh: triangle centroids to the nearest original centroid
+    diag = np.linalg.norm(p.max(axis=0) - p.min(axis=0))
+    d, _ = cKDTree(p[faces].mean(axis=1)).query(p[mesh.triangles].mean(axis=1))
+    assert d.mean() < 0.002 * diag and d.max() < 0.02 * diag
+
+
+def test_rings_from_fans_as_in_the_paper_still_give_a_manifold():
+    mesh = fan_cloud_to_mesh(build_fans(sphere(5_000, seed=7)), rings="fans")
+    s = mesh.stats
+    assert s["non_manifold_edges"] == 0 and s["non_manifold_vertices"] == 0
+    assert s["inconsistent_edges"] == 0
+
+
+def test_holes_stay_open_when_asked():
+    fc = build_fans(sphere(5_000, seed=8))
+    kept = fan_cloud_to_mesh(fc, close_holes=False)
+    closed = fan_cloud_to_mesh(fc)
+    assert kept.stats["holes_closed"] == 0
+    assert kept.n_triangles <= closed.n_triangles
+    assert closed.stats["holes"] == 0
+
+
+def test_input_unchanged_and_point_data_kept():
+    p = sphere(3000, seed=9)
+    rgb = (np.arange(9000) % 256).astype(np.uint8).reshape(3000, 3)
+    fc = build_fans(p, point_data={"RGB": rgb})
+    before = fingerprint(fc.points, fc.offsets, fc.ring, fc.normals, fc.open, fc.point_data["RGB"])
+    mesh = fan_cloud_to_mesh(fc)
+    after = fingerprint(fc.points, fc.offsets, fc.ring, fc.normals, fc.open, fc.point_data["RGB"])
+    assert before == after
+    np.testing.assert_array_equal(mesh.point_data["RGB"], rgb)
+    assert mesh.point_data["RGB"] is not fc.point_data["RGB"]
+
+
+def test_bad_input():
+    with pytest.raises(TypeError, match="FanCloud"):
+        fan_cloud_to_mesh(np.zeros((10, 3)))
+    empty = FanCloud(np.empty((0, 3)), np.zeros(1, np.int64), np.empty(0, np.int64),
+                     np.empty((0, 3)), np.empty(0, bool))
+    with pytest.raises(ValueError, match="empty"):
+        fan_cloud_to_mesh(empty)
+    fc = build_fans(sphere(500, seed=10))
+    fc.ring[5] = 10_000  # out of range
+    with pytest.raises(ValueError, match="out of range"):
+        fan_cloud_to_mesh(fc)
+    with pytest.raises(ValueError, match="at least"):
+        build_fans(np.eye(3))  # a point cloud of 3 points gives no fan cloud
+    good = build_fans(sphere(500, seed=11))
+    with pytest.raises(ValueError, match="rings"):
+        fan_cloud_to_mesh(good, rings="voronoi")
+    with pytest.raises(ValueError, match="max_hole"):
+        fan_cloud_to_mesh(good, max_hole=2)
