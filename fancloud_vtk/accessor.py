@@ -16,7 +16,8 @@ import pyvista as pv
 from fancloud_vtk.algorithms.base import run
 from fancloud_vtk.algorithms.convert import fancloud_from_vtk, is_fancloud
 from fancloud_vtk.algorithms.fans import FanCloudFilter
-from fancloud_vtk.params import FAN_PARAMS, Param, check_params
+from fancloud_vtk.algorithms.mesh import FanCloudMeshFilter
+from fancloud_vtk.params import FAN_PARAMS, MESH_PARAMS, Param, check_params
 
 
 def _point_set(dataset):
@@ -125,3 +126,49 @@ class FanCloudAccessor:
         """
         values = check_params(FAN_PARAMS, params)
         return _run(FanCloudFilter(**values), self._dataset, progress_bar, "Building fans")
+
+    @_document(FAN_PARAMS + MESH_PARAMS)
+    def mesh(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
+        """Triangle mesh from the fan cloud (paper section 4): a closed 2-manifold where it can be.
+
+        On a fan cloud (the output of :meth:`fans`) its rings are used as they
+        are; on any other dataset the fans of its points are built first with
+        the fan parameters. Every point and point array is kept.
+
+        Parameters
+        ----------
+        {params}
+        progress_bar : bool, default: False
+            Show a progress bar (needs ``tqdm``).
+
+        Returns
+        -------
+        pyvista.PolyData
+            A new dataset: the points, the mesh triangles (counter-clockwise
+            around ``Normals``), the input's point arrays, and the mesh
+            statistics as one-value field arrays ``mesh_<name>``
+            (``mesh_final``, ``mesh_holes``, ``mesh_boundary_edges``,
+            ``mesh_non_manifold_edges``, ``mesh_self_intersections``, ...).
+
+        Raises
+        ------
+        TypeError, ValueError
+            For unknown or out-of-range parameters and for input that gives no
+            fan cloud.
+
+        See Also
+        --------
+        fancloud_vtk.fan_cloud_to_mesh : the same on a FanCloud.
+
+        Examples
+        --------
+        >>> import pyvista as pv
+        >>> from fancloud_vtk.data import bunny_path
+        >>> cloud = pv.PolyData(pv.read(bunny_path()).points)
+        >>> mesh = cloud.fancloud.mesh()
+        >>> mesh.n_cells == 2 * cloud.n_points - 4, int(mesh["mesh_holes"][0])
+        (True, 0)
+        >>> mesh.plot(smooth_shading=True)  # doctest: +SKIP
+        """
+        values = check_params(FAN_PARAMS + MESH_PARAMS, params)
+        return _run(FanCloudMeshFilter(**values), self._dataset, progress_bar, "Meshing")

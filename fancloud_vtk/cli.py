@@ -2,6 +2,8 @@
 
 ``fancloud fans IN -o OUT.vtp [--k 6 ...]``
     Build the fan cloud of a point cloud or mesh file.
+``fancloud mesh IN -o OUT.{ply,obj,vtp,stl} [...]``
+    Triangle mesh (paper section 4) of a fan cloud .vtp or of any point cloud.
 ``fancloud demo [--out DIR]``
     The main job on built-in data (the Stanford bunny shipped with pymeshlab).
 ``fancloud bench fans [...]``
@@ -16,7 +18,7 @@ import sys
 import time
 import warnings
 
-from fancloud_vtk.params import FAN_PARAMS, Param
+from fancloud_vtk.params import FAN_PARAMS, MESH_PARAMS, Param
 
 
 def _add_params(parser: argparse.ArgumentParser, table: tuple[Param, ...]) -> None:
@@ -71,10 +73,11 @@ def _build(points_file, params, quiet):
         progress.close()
 
 
-def _check_output(path: str, ext: str) -> None:
+def _check_output(path: str, ext: str | tuple[str, ...]) -> None:
     """Fail before any work when ``path`` cannot be the output (``main`` prints it, exit 2)."""
-    if not path.lower().endswith(ext):
-        raise ValueError(f"the output must be a {ext} file, got {path!r}")
+    exts = (ext,) if isinstance(ext, str) else ext
+    if not path.lower().endswith(exts):
+        raise ValueError(f"the output must be a {' or '.join(exts)} file, got {path!r}")
     folder = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(folder):
         raise FileNotFoundError(f"cannot write {path!r}: no such directory {folder!r}")
@@ -94,6 +97,58 @@ def cmd_fans(args) -> int:
     return 0
 
 
+def _load_fancloud(path, params, quiet):
+    """A fan cloud .vtp as it is; any other point cloud or mesh file: its fans, built."""
+    from fancloud_vtk.io import read_point_cloud
+
+    if path.lower().endswith(".vtp"):
+        from fancloud_vtk.algorithms.convert import fancloud_from_vtk, is_fancloud, read_vtp
+
+        data = read_vtp(path)
+        if is_fancloud(data):
+            return fancloud_from_vtk(data)
+    return _build(read_point_cloud(path), params, quiet)
+
+
+def cmd_mesh(args) -> int:
+    from fancloud_vtk.algorithms.convert import MESH_FORMATS, mesh_to_vtk, write_mesh
+    from fancloud_vtk.core.mesh import fan_cloud_to_mesh
+
+    _check_output(args.output, MESH_FORMATS)
+    t0 = time.perf_counter()
+    fc = _load_fancloud(args.input, _params(args, FAN_PARAMS), args.quiet)
+    mesh = fan_cloud_to_mesh(fc, **_params(args, MESH_PARAMS))
+    elapsed = time.perf_counter() - t0
+    write_mesh(mesh_to_vtk(mesh), args.output)
+    if not args.quiet:
+        _print_mesh_summary(mesh, elapsed, args.output)
+    return 0
+
+
+def _print_mesh_summary(mesh, elapsed, path=None) -> None:
+    s = mesh.stats
+    n = max(len(mesh.points), 1)
+    rows = [("points", f"{len(mesh.points):,}")]
+    for key, label in (("fan_triangles", "fan triangles"), ("distinct", "distinct"),
+                       ("after_superfluous", "after superfluous removal"),
+                       ("grown", "grown 2-manifold"), ("final", "final (holes closed)")):
+        rows.append((label, f"{s[key]:,} ({s[key] / n:.3f} per point)"))
+    for key in ("holes_closed", "points_inserted", "boundary_edges", "holes",
+                "non_manifold_edges", "non_manifold_vertices", "inconsistent_edges",
+                "self_intersections", "unused_points", "euler_characteristic"):
+        rows.append((key.replace("_", " "), f"{s[key]:,}"))
+    rows.append(("time", f"{elapsed:.2f} s"))
+    if path:
+        rows.append(("written", str(path)))
+    _print_rows(rows)
+
+
+def _print_rows(rows) -> None:
+    width = max(len(r[0]) for r in rows)
+    for name, value in rows:
+        print(f"{name:<{width}}  {value}")
+
+
 def _print_summary(fc, elapsed, path=None) -> None:
     s = fc.summary()
     rows = [
@@ -107,9 +162,7 @@ def _print_summary(fc, elapsed, path=None) -> None:
     ]
     if path:
         rows.append(("written", str(path)))
-    width = max(len(r[0]) for r in rows)
-    for name, value in rows:
-        print(f"{name:<{width}}  {value}")
+    _print_rows(rows)
 
 
 def cmd_demo(args) -> int:
@@ -137,6 +190,13 @@ def make_parser() -> argparse.ArgumentParser:
     _add_params(p, FAN_PARAMS)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_fans)
+
+    p = sub.add_parser("mesh", help="triangle mesh (a 2-manifold) from a fan cloud or points")
+    p.add_argument("input", help="a fan cloud .vtp, or a point cloud / mesh file (fans are built)")
+    p.add_argument("-o", "--output", required=True, help="output mesh (.ply .obj .vtp .stl .vtk)")
+    _add_params(p, FAN_PARAMS + MESH_PARAMS)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    p.set_defaults(func=cmd_mesh)
 
     p = sub.add_parser("demo", help="build, save and render the fan cloud of the bunny")
     p.add_argument("--out", default="fancloud_demo", help="output folder (default: %(default)s)")

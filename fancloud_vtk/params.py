@@ -137,3 +137,29 @@ FAN_PARAMS: tuple[Param, ...] = (
         "input has no normals",
     ),
 )
+
+#: Parameters of the mesh from a fan cloud (paper section 4): fan_cloud_to_mesh,
+#: FanCloudMeshFilter (with FAN_PARAMS for point input), dataset.fancloud.mesh(),
+#: ``fancloud mesh``.
+MESH_PARAMS: tuple[Param, ...] = (
+    Param(
+        "rings", "choice", "delaunay",
+        "where the triangles come from: 'delaunay' (each closed fan's local Delaunay ring "
+        "in its tangent plane, from its two fan rings; default) or 'fans' (the fans "
+        "themselves, as in the paper)",
+        choices=("delaunay", "fans"),
+    ),
+    Param(
+        "close_holes", "bool", True,
+        "triangulate the holes the growing leaves inside the surface (loops whose points "
+        "all have closed fans); real boundaries stay open",
+    ),
+    Param(
+        "max_hole", "int", 32, "largest boundary loop, in edges, that counts as a hole to close",
+        range=(3, 100_000),
+    ),
+    Param(
+        "self_intersections", "bool", True,
+        "count self-intersecting triangle pairs in the mesh statistics",
+    ),
+)

@@ -26,6 +26,7 @@ from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 from vtkmodules.vtkCommonCore import vtkCommand, vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
 
+from fancloud_vtk.core.mesh import TriangleMesh
 from fancloud_vtk.core.model import FanCloud
 
 NORMALS = "Normals"
@@ -256,3 +257,73 @@ def read_vtp(path) -> vtkPolyData:
     out = vtkPolyData()
     out.ShallowCopy(reader.GetOutput())
     return out
+
+
+#: prefix of the field arrays that carry a mesh's statistics (one value each)
+MESH_STATS_PREFIX = "mesh_"
+
+
+def mesh_to_vtk(mesh: TriangleMesh) -> vtkPolyData:
+    """A triangle mesh as ``vtkPolyData``: all points, the triangles, point arrays, stats.
+
+    Every point of the fan cloud stays (point arrays pass through one to
+    one); ``Normals`` are the fan cloud's normals. The statistics are field
+    arrays ``mesh_<name>`` with one value each (``mesh_final``,
+    ``mesh_boundary_edges``, ``mesh_holes``, ...).
+    """
+    out = vtkPolyData()
+    out.SetPoints(numpy_points(mesh.points))
+    out.SetPolys(triangle_cells(mesh.triangles))
+    pd = out.GetPointData()
+    for name, arr in mesh.point_data.items():
+        if name in RESERVED:
+            continue
+        pd.AddArray(_to_vtk_array(arr, name))
+    pd.SetNormals(_to_vtk_array(mesh.normals, NORMALS))
+    fd = out.GetFieldData()
+    for key, value in mesh.stats.items():
+        if isinstance(value, bool | int | float | np.integer | np.floating):
+            dtype = np.float64 if isinstance(value, float | np.floating) else np.int64
+            fd.AddArray(_to_vtk_array(np.array([value], dtype), MESH_STATS_PREFIX + key))
+    return out
+
+
+#: mesh file formats ``write_mesh`` knows, by extension
+MESH_FORMATS = (".vtp", ".ply", ".obj", ".stl", ".vtk")
+
+
+def write_mesh(polydata, path) -> None:
+    """Write a triangle mesh by extension: .vtp, .ply, .obj, .stl or .vtk (legacy).
+
+    Raises ``ValueError`` for another extension and ``OSError`` naming the
+    path and the reason when writing fails.
+    """
+    path = os.fspath(path)
+    ext = os.path.splitext(path)[1].lower()
+    if ext == ".vtp":
+        write_vtp(polydata, path)
+        return
+    if ext not in MESH_FORMATS:
+        raise ValueError(f"cannot write {path}: the mesh format must be one of {MESH_FORMATS}")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise FileNotFoundError(f"could not write {path}: no such directory {folder}")
+    if ext == ".ply":
+        from vtkmodules.vtkIOPLY import vtkPLYWriter as Writer
+    elif ext == ".obj":
+        from vtkmodules.vtkIOGeometry import vtkOBJWriter as Writer
+    elif ext == ".stl":
+        from vtkmodules.vtkIOGeometry import vtkSTLWriter as Writer
+    else:
+        from vtkmodules.vtkIOLegacy import vtkPolyDataWriter as Writer
+    writer = Writer()
+    errors = _ErrorCatcher(writer, writer.GetExecutive())
+    writer.SetFileName(path)
+    if ext in (".ply", ".stl", ".vtk"):
+        writer.SetFileTypeToBinary()
+    writer.SetInputData(polydata)
+    with _quiet_vtk() as capture:
+        ok = writer.Write()
+    messages = _first_errors(errors, capture)
+    if ok != 1 or messages:
+        raise OSError(f"could not write {path}: {'; '.join(messages) or 'VTK error'}")
