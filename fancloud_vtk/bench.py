@@ -8,10 +8,22 @@
     bit-identical whatever the number of threads. Writes ``fans.md`` (also
     printed) and ``fans.json`` to ``--out``.
 
+``fancloud bench mesh [--data bunny sphere 1M ...] [--methods ...] [--timeout 600]``
+    Triangle meshes from the same points: this project (``build_fans`` +
+    ``fan_cloud_to_mesh``) against MeshLib's ``triangulatePointCloud``,
+    pymeshlab's ball pivoting and screened Poisson, and VTK's
+    ``vtkSurfaceReconstructionFilter``. Per method: time, triangles per point,
+    non-manifold edges and vertices, boundary edges, holes, self-intersecting
+    triangle pairs, unused points and the distance to the reference surface;
+    our stage counts beside the paper's. Each method runs in its own process
+    with a timeout (:mod:`fancloud_vtk._bench_peers`): a missing, failing,
+    crashing or hanging method is a row saying so. Writes ``mesh.md`` (also
+    printed), ``mesh.json`` and ``mesh.png`` (one bar panel per metric).
+
 Everything in the tables is measured in the run; only the targets (the
 issue's figures) are constants. Measurements that need a fresh process
-(first call, memory, thread counts) run in subprocesses of the same Python
-(see :func:`_child_main`). Further benchmarks (``mesh``, ``reduce``) are
+(first call, memory, thread counts, the peers) run in subprocesses of the
+same Python (see :func:`_child_main`). Further benchmarks (``reduce``) are
 meant to be added as subcommands in :func:`make_parser`.
 """
 
@@ -575,8 +587,16 @@ def fans_rows(res: dict) -> list[dict]:
     return rows
 
 
-def markdown(title: str, res: dict, rows: list[dict]) -> str:
-    """Title, machine and run information, then the table."""
+def table_lines(columns, rows: list[dict]) -> list[str]:
+    """A Markdown table: header, rule and one line per row (``|`` in cells becomes ``/``)."""
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    for row in rows:
+        lines.append("| " + " | ".join(str(row[c]).replace("|", "/") for c in columns) + " |")
+    return lines
+
+
+def markdown(title: str, res: dict, rows: list[dict], notes=()) -> str:
+    """Title, machine and run information (and ``notes``, one line each), then the table."""
     m = res["machine"]
     mem = f"{m['memory_bytes'] / 2**30:.1f} GiB" if m["memory_bytes"] else "unknown"
     load = ", ".join(f"{x:.2f}" for x in m["load_average"]) if m["load_average"] else "unknown"
@@ -590,12 +610,10 @@ def markdown(title: str, res: dict, rows: list[dict]) -> str:
         f"{m['platform']}",
         f"- run: `fancloud bench {' '.join(res['argv'])}` on {res['date']}, "
         f"{res['elapsed']:.0f} s in all",
+        *(f"- {note}" for note in notes),
         "",
-        "| " + " | ".join(COLUMNS) + " |",
-        "|" + "---|" * len(COLUMNS),
+        *table_lines(COLUMNS, rows),
     ]
-    for row in rows:
-        lines.append("| " + " | ".join(str(row[c]).replace("|", "/") for c in COLUMNS) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -681,11 +699,448 @@ def run_fans(args, argv: list[str]) -> dict:
     return res
 
 
+# -- the measurements of ``bench mesh`` -------------------------------------------------
+
+#: The issue's targets for ``bench mesh`` (our method only; the peers are measured, not judged).
+TARGET_NON_MANIFOLD = 0  #: non-manifold edges, and non-manifold vertices
+TARGET_TPP = (1.95, 2.05)  #: triangles per point on a closed surface
+TARGET_SELF_PCT = 0.01  #: self-intersecting triangle pairs, percent of the triangles
+TARGET_MESHLIB_RATIO = 1.0  #: our time / MeshLib's time ...
+MESHLIB_TARGET_SIZES = (100_000, 1_000_000)  #: ... at these sizes
+TARGET_BPA_SPEEDUP = 10.0  #: ball-pivoting time / our time
+
+MESH_TIMEOUT = 600.0  #: default seconds allowed to one method (warm-up included)
+SAMPLES_PER_POINT = 10  #: surface samples per input point for the distance
+
+#: Stage counts of fan_cloud_to_mesh (keys of its ``.stats``) and the paper's figures (§4).
+PAPER_STAGES = (
+    ("fan_triangles", "all fan triangles", "about 6 (k n, k = 6)"),
+    ("distinct", "distinct triangles", "about 2.5"),
+    ("after_superfluous", "after removing superfluous triangles", "about 2.1"),
+    ("final", "final mesh", "2 - 4/n (closed genus-0 mesh)"),
+)
+
+#: The columns of the per-data comparison table, and the metric of the figure's panels.
+COMPARE_COLUMNS = ("method", "time (s)", "triangles", "triangles / point", "non-manifold edges",
+                   "non-manifold vertices", "boundary edges", "holes",
+                   "self-intersecting pairs", "unused points", "distance mean",
+                   "distance max", "status")
+PANELS = (
+    ("time", "time (s), log scale"), ("triangles_per_point", "triangles per point"),
+    ("non_manifold_edges", "non-manifold edges"),
+    ("non_manifold_vertices", "non-manifold vertices"), ("boundary_edges", "boundary edges"),
+    ("holes", "holes (boundary loops)"), ("self_intersections", "self-intersecting pairs"),
+    ("unused_points", "unused points"), ("distance_mean", "distance mean / bbox diagonal"),
+    ("distance_max", "distance max / bbox diagonal"),
+)
+
+def parse_data(tokens: list[str], n: int) -> list[tuple[str, int | None]]:
+    """``['bunny', 'sphere', '5k']`` -> ``[('bunny', None), ('sphere', n), ('sphere', 5000)]``."""
+    out = []
+    for token in (t.strip() for text in tokens for t in text.split(",")):
+        if not token:
+            continue
+        low = token.lower()
+        if low == "bunny":
+            out.append(("bunny", None))
+        elif low == "sphere":
+            out.append(("sphere", n))
+        else:
+            try:
+                out.append(("sphere", parse_size(token)))
+            except ValueError as exc:
+                raise ValueError(f"--data: {token!r} is not bunny, sphere or a number of "
+                                 "points") from exc
+    if not out:
+        raise ValueError("--data: nothing given")
+    return out
+
+
+def mesh_data(kind: str, n: int | None, seed: int) -> dict:
+    """Points, label and reference surface (a distance function) of one ``--data`` entry."""
+    from fancloud_vtk._bench_peers import MeshDistance, sphere_distance
+
+    if kind == "bunny":
+        from fancloud_vtk.data import bunny_path
+        from fancloud_vtk.io import read_point_cloud
+
+        f = read_point_cloud(bunny_path())
+        pts = f.points
+        return {"kind": kind, "n": len(pts), "points": pts,
+                "label": f"Stanford bunny (pymeshlab bunny.obj), {len(pts):,} points",
+                "reference": f"the bunny.obj mesh ({len(f.faces):,} triangles), "
+                             "vtkImplicitPolyDataDistance",
+                "distance": MeshDistance(pts, f.faces)}
+    pts = surface_points(n, seed, "sphere")
+    return {"kind": kind, "n": n, "points": pts, "label": data_label(n, "sphere", seed),
+            "reference": "the unit sphere, | |x| - 1 |", "distance": sphere_distance}
+
+
+def measure_mesh(r: dict, data: dict, samples: int, self_intersections: bool,
+                 seed: int) -> None:
+    """Statistics and distance of a method's mesh (``r`` from ``run_method``), in place."""
+    from fancloud_vtk._bench_peers import mesh_statistics_of, surface_distance
+
+    vertices, triangles = r.pop("vertices", None), r.pop("triangles", None)
+    if vertices is None:
+        return
+    n = data["n"]
+    r["n_vertices"], r["n_triangles"] = len(vertices), len(triangles)
+    r["stats"] = mesh_statistics_of(vertices, triangles, self_intersections)
+    t0 = time.perf_counter()
+    d = surface_distance(vertices, triangles, data["distance"], samples * n, seed)
+    diag = data["diag"]
+    r["distance"] = {**d, "time": time.perf_counter() - t0, "diag": diag,
+                     "mean_fraction": None if d["mean"] is None else d["mean"] / diag,
+                     "max_fraction": None if d["max"] is None else d["max"] / diag}
+
+
+def metric(r: dict, key: str):
+    """A method's value of a metric (see :data:`PANELS`), or None when not measured/n/a."""
+    if r["status"] != "ok":
+        return None
+    if key == "time":
+        return r["time"]
+    if key.startswith("distance_"):
+        return r.get("distance", {}).get(key.split("_", 1)[1] + "_fraction")
+    stats = r.get("stats", {})
+    if key == "unused_points" and r["new_points"]:
+        return None
+    return stats.get(key)
+
+
+def _cell(r: dict, key: str) -> str:
+    if key == "time" and r.get("time_lower_bound"):
+        return f"> {_num(r['time_lower_bound'])}"  # killed while timed
+    if r["status"] != "ok":
+        return "-"
+    if key == "unused_points" and r["new_points"]:
+        return "n/a"
+    value = metric(r, key)
+    if value is None:
+        return "n/a"
+    if key.startswith("distance_"):
+        return f"{value:.3g}"
+    if key == "triangles_per_point":
+        return f"{value:.4f}"
+    return _num(value) if isinstance(value, float) else f"{value:,}"
+
+
+def compare_rows(ds: dict) -> list[dict]:
+    """One row per method of a data set for the comparison table."""
+    keys = ("time", None, "triangles_per_point", "non_manifold_edges", "non_manifold_vertices",
+            "boundary_edges", "holes", "self_intersections", "unused_points",
+            "distance_mean", "distance_max")
+    rows = []
+    for r in ds["methods"]:
+        cells = [r["label"]]
+        for key in keys:
+            if key is None:
+                cells.append(f"{r['n_triangles']:,}" if r["status"] == "ok" else "-")
+            else:
+                cells.append(_cell(r, key))
+        status = r["message"]
+        if r["status"] == "ok" and "error" in r.get("stats", {}):
+            status += f"; statistics: {r['stats']['error']}"
+        if r["status"] == "ok" and r["new_points"]:
+            status += f" (new points: {r['n_vertices']:,} vertices)"
+        cells.append(status)
+        rows.append(dict(zip(COMPARE_COLUMNS, cells, strict=True)))
+    return rows
+
+
+def _find(ds: dict, name: str) -> dict | None:
+    return next((r for r in ds["methods"] if r["method"] == name), None)
+
+
+def mesh_rows(res: dict) -> list[dict]:
+    """The rows of the figures table of ``bench mesh`` (our method, against the targets)."""
+    rows = []
+    for ds in res["datasets"]:
+        data, n = ds["label"], ds["n"]
+        ours = _find(ds, "ours")
+        if ours is None:
+            continue
+        call = ours["call"]
+        ok = ours["status"] == "ok"
+        stats = ours.get("stats", {}) if ok else {}
+        missing = ours["message"] if not ok else f"n/a ({stats.get('error', 'not measured')})"
+        lo, hi = TARGET_TPP
+        nm = TARGET_NON_MANIFOLD
+        si = stats.get("self_intersections")
+        tri = stats.get("triangles") or 0
+        pct = None if si is None or not tri else 100.0 * si / tri
+        for name, key, value, unit, target, passed, params in (
+            ("mesh: non-manifold edges", "non_manifold_edges",
+             _count(stats.get("non_manifold_edges")), "edges", f"{nm}",
+             _le(stats.get("non_manifold_edges"), nm), call),
+            ("mesh: non-manifold vertices", "non_manifold_vertices",
+             _count(stats.get("non_manifold_vertices")), "vertices", f"{nm}",
+             _le(stats.get("non_manifold_vertices"), nm), call),
+            ("mesh: triangles per point (closed surface)", "triangles_per_point",
+             _fixed(stats.get("triangles_per_point"), 4), "triangles/point", f"{lo} to {hi}",
+             None if stats.get("triangles_per_point") is None
+             else lo <= stats["triangles_per_point"] <= hi,
+             f"{call}; {tri:,} triangles, {stats.get('points') or 0:,} points" if stats
+             else call),
+            ("mesh: self-intersecting triangle pairs", "self_intersections",
+             _fixed(pct, 4), "% of triangles", f"<= {TARGET_SELF_PCT:g}",
+             _le(pct, TARGET_SELF_PCT),
+             f"{call}; {si or 0:,} pairs in {tri:,} triangles" if si is not None else
+             f"{call}; not computed (--no-self-intersections)" if "self_intersections" in stats
+             else call),
+        ):
+            if key not in stats or value is None:
+                value = missing if key not in stats else "n/a"
+                rows.append(_row(name, data, params, value, unit, target, "not measured"))
+            else:
+                rows.append(_row(name, data, params, value, unit, target, _ok(passed)))
+
+        for peer, name, better, target, test in (
+            ("meshlib", "speed: time ours / MeshLib", "ratio",
+             f"<= {TARGET_MESHLIB_RATIO:g} (at 100k, 1M)" if n in MESHLIB_TARGET_SIZES else "",
+             (lambda v: v <= TARGET_MESHLIB_RATIO) if n in MESHLIB_TARGET_SIZES else None),
+            ("ball-pivoting", "speed: ball pivoting time / ours", "speedup",
+             f">= {TARGET_BPA_SPEEDUP:g}", lambda v: v >= TARGET_BPA_SPEEDUP),
+        ):
+            p = _find(ds, peer)
+            if p is None:
+                continue
+            params = (f"best times, warm (after a {WARMUP_POINTS:,}-point run), each method "
+                      f"in its own process; ours {_fmt_time(ours)}, {p['label']} "
+                      f"{_fmt_time(p)}")
+            if ok and p["status"] == "ok":
+                v = ours["time"] / p["time"] if better == "ratio" else p["time"] / ours["time"]
+                rows.append(_row(name, data, params, f"{v:.3f}", "x", target,
+                                 _ok(test(v)) if test else ""))
+            elif ok and p.get("time_lower_bound") and better == "speedup":
+                v = p["time_lower_bound"] / ours["time"]  # the peer was killed while timed
+                rows.append(_row(name, data, params, f"> {v:.1f}", "x", target,
+                                 _ok(test(v)) if test else ""))
+            else:
+                rows.append(_row(name, data, params, "n/a", "x", target, "not measured"))
+    return rows
+
+
+def _count(value) -> str | None:
+    return None if value is None else f"{value:,}"
+
+
+def _fixed(value, digits: int) -> str | None:
+    return None if value is None else f"{value:.{digits}f}"
+
+
+def _le(value, limit) -> bool | None:
+    return None if value is None else value <= limit
+
+
+def _fmt_time(r: dict) -> str:
+    return f"{_num(r['time'])} s" if r["status"] == "ok" else r["message"]
+
+
+#: Keys of mesh_statistics: in the comparison table, so left out of the stage table.
+MESH_STAT_KEYS = frozenset((
+    "points", "triangles", "unused_points", "edges", "boundary_edges", "holes",
+    "non_manifold_edges", "non_manifold_vertices", "inconsistent_edges", "degenerate_triangles",
+    "duplicate_triangles", "self_intersections", "components", "euler_characteristic",
+    "triangles_per_point",
+))
+
+
+def stage_rows(r: dict, n_points: int) -> list[dict]:
+    """Our stage counts per point beside the paper's (from ``fan_cloud_to_mesh(...).stats``).
+
+    In the order of ``.stats`` (the pipeline's); checks of the result
+    (:data:`MESH_STAT_KEYS`) are left out.
+    """
+    paper = {key: (label, text) for key, label, text in PAPER_STAGES}
+    rows = []
+    for key, value in (r.get("info", {}).get("stages") or {}).items():
+        if key in MESH_STAT_KEYS:
+            continue
+        label, text = paper.get(key, ("", ""))
+        rows.append({"stage": f"{label} (`{key}`)" if label else f"`{key}`",
+                     "count": f"{value:,}", "per point": f"{value / n_points:.3f}",
+                     "paper per point": text})
+    return rows
+
+
+def peer_versions() -> dict:
+    """Installed versions of the peers' packages (None if not installed)."""
+    from importlib import metadata
+
+    out = {}
+    for pkg in ("meshlib", "pymeshlab", "vtk", "matplotlib"):
+        try:
+            out[pkg] = metadata.version(pkg)
+        except metadata.PackageNotFoundError:
+            out[pkg] = None
+    return out
+
+
+def mesh_markdown(res: dict) -> str:
+    """Header and figures table, then per data set the comparison and our stage counts."""
+    versions = ", ".join(f"{k} {v or 'not installed'}" for k, v in res["peers"].items())
+    a = res["args"]
+    notes = [
+        f"peers: {versions}",
+        f"each method runs in its own process (timeout {a['timeout']:g} s), warmed up on "
+        f"{WARMUP_POINTS:,} sphere points, then timed (best of {a['repeat']}); its mesh is then "
+        "measured here",
+        f"distance: {a['samples']} area-weighted random samples per input point on the "
+        "method's surface (plus its vertices for the max), unsigned distance to the reference, "
+        "as a fraction of the bounding-box diagonal of the input points",
+        "self-intersecting pairs: " + ("fancloud_vtk.core.mesh_stats.mesh_statistics"
+                                       if a["self_intersections"]
+                                       else "not computed (--no-self-intersections)"),
+    ]
+    text = markdown("fancloud bench mesh: triangle meshes from point clouds", res, res["rows"],
+                    notes)
+    lines = [""]
+    for ds in res["datasets"]:
+        lines += [f"## {ds['label']}", "",
+                  f"Reference surface: {ds['reference']}; bounding-box diagonal "
+                  f"{ds['diag']:.4g}.", "", *table_lines(COMPARE_COLUMNS, compare_rows(ds)), ""]
+        ours = _find(ds, "ours")
+        if ours is not None and ours["status"] == "ok" and ours["info"].get("stages"):
+            info = ours["info"]
+            lines += [f"Stage counts of `fan_cloud_to_mesh` (build_fans "
+                      f"{info['build_fans_time']:.3f} s + fan_cloud_to_mesh "
+                      f"{info['to_mesh_time']:.3f} s; "
+                      f"{info['fans_open']:,} open fans):", "",
+                      *table_lines(("stage", "count", "per point", "paper per point"),
+                                   stage_rows(ours, ds["n"])), ""]
+            timings = (info.get("other_stats") or {}).get("timings")
+            if isinstance(timings, dict) and timings:
+                lines += ["Stage times: " + ", ".join(
+                    f"{k} {v:.3f} s" for k, v in timings.items()
+                    if isinstance(v, int | float)) + ".", ""]
+    lines += ["## Methods", ""]
+    seen = []
+    for ds in res["datasets"]:
+        for r in ds["methods"]:
+            if r["method"] not in seen:
+                seen.append(r["method"])
+                extra = ("; its vertices are new points (unused points: n/a; triangles per "
+                         "point: per output vertex)" if r["new_points"] else "")
+                lines.append(f"- **{r['label']}** (`{r['method']}`): {r['call']}{extra}")
+    return text + "\n".join(lines) + "\n"
+
+
+def mesh_chart(res: dict, path: str) -> str:
+    """A bar chart, one panel per metric: bars per method, grouped by data set (Agg)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+    datasets = res["datasets"]
+    names = []
+    for ds in datasets:
+        names += [r["method"] for r in ds["methods"] if r["method"] not in names]
+    labels = {r["method"]: r["label"] for ds in datasets for r in ds["methods"]}
+    cols = 5
+    rows = -(-len(PANELS) // cols)
+    fig = Figure(figsize=(4.2 * cols, 3.6 * rows + 0.8), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(rows, cols, squeeze=False).ravel()
+    width = 0.8 / max(len(names), 1)
+    colours = [f"C{i}" for i in range(len(names))]
+    short = [ds["label"].split(",")[0].replace("Stanford bunny (pymeshlab bunny.obj)", "bunny")
+             + (f"\n{size_label(ds['n'])}" if ds["kind"] != "bunny" else "")
+             for ds in datasets]
+    for ax, (key, title) in zip(axes, PANELS, strict=False):
+        top = 0.0
+        for j, name in enumerate(names):
+            for i, ds in enumerate(datasets):
+                r = _find(ds, name)
+                if r is None:
+                    continue
+                x = i - 0.4 + (j + 0.5) * width
+                value = metric(r, key)
+                if value is not None and (key != "time" or value > 0):
+                    ax.bar(x, value, width, color=colours[j])
+                    top = max(top, value)
+                why = (r["status"] if r["status"] != "ok" else "n/a" if value is None
+                       else "0" if value == 0 else "")
+                if why:
+                    ax.text(x, 0.01, why, rotation=90 if len(why) > 1 else 0, ha="center",
+                            va="bottom", fontsize=7, color=colours[j],
+                            transform=ax.get_xaxis_transform())
+        ax.set_title(title, fontsize=10)
+        ax.set_xticks(range(len(datasets)), short, fontsize=8)
+        ax.set_xlim(-0.5, len(datasets) - 0.5)
+        if key == "time" and top > 0:
+            ax.set_yscale("log")
+        elif top == 0:
+            ax.set_ylim(0, 1)
+        else:
+            ax.set_ylim(0, top * 1.08)
+        ax.tick_params(axis="y", labelsize=8)
+    for ax in axes[len(PANELS):]:
+        ax.set_visible(False)
+    fig.legend([Patch(color=c) for c in colours], [labels[name] for name in names],
+               loc="outside lower center", ncols=min(len(names), 5), fontsize=9)
+    fig.suptitle("fancloud bench mesh (missing / failed / timeout written at the bar's place)",
+                 fontsize=11)
+    fig.savefig(path, dpi=90)
+    return path
+
+
+def run_mesh(args, argv: list[str]) -> dict:
+    """``bench mesh``: run every method on the same points, measure, write table, JSON, chart."""
+    from fancloud_vtk._bench_peers import method_for, run_method
+
+    t_start = time.perf_counter()
+    quiet = args.quiet
+    specs = parse_data(args.data, parse_size(args.n))
+    methods = [method_for(m) for m in args.methods]
+    res = {
+        "argv": ["mesh", *argv], "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+        "args": {"data": [f"{k}" if m is None else f"{k}:{m}" for k, m in specs],
+                 "methods": [m.name for m in methods], "timeout": args.timeout,
+                 "repeat": args.repeat, "samples": args.samples, "seed": args.seed,
+                 "self_intersections": args.self_intersections, "k": K},
+        "machine": machine_info(), "peers": peer_versions(), "datasets": [],
+    }
+    with tempfile.TemporaryDirectory(prefix="fancloud-bench-mesh-") as work:
+        for kind, n in specs:
+            data = mesh_data(kind, n, args.seed)
+            pts = data["points"]
+            data["diag"] = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+            points_path = os.path.join(work, "points.npy")
+            np.save(points_path, pts)
+            ds = {key: data[key] for key in ("kind", "n", "label", "reference", "diag")}
+            ds["methods"] = []
+            for method in methods:
+                _log(quiet, f"{data['label']}: {method.label} ...")
+                r = run_method(method, points_path, work, timeout=args.timeout,
+                               repeat=args.repeat)
+                measure_mesh(r, data, args.samples, args.self_intersections, args.seed)
+                _log(quiet, f"  {r['message']}" + (f", {r['time']:.3f} s" if r["time"] else ""))
+                ds["methods"].append(r)
+            res["datasets"].append(ds)
+            del data, pts
+            gc.collect()
+    res["elapsed"] = time.perf_counter() - t_start
+    res["rows"] = mesh_rows(res)
+    text = mesh_markdown(res)
+    md, js = write_outputs(args.out, "mesh", text, res)
+    png = mesh_chart(res, os.path.join(args.out, "mesh.png"))
+    print(text)
+    print(f"written: {md}, {js}, {png}")
+    return res
+
+
 # -- command line ----------------------------------------------------------------------
 
 
 def _cmd_fans(args, argv) -> int:
     run_fans(args, argv)
+    return 0
+
+
+def _cmd_mesh(args, argv) -> int:
+    run_mesh(args, argv)
     return 0
 
 
@@ -719,15 +1174,59 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="bench_out", help="output folder (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=_cmd_fans)
+
+    from fancloud_vtk._bench_peers import METHODS
+
+    p = sub.add_parser(
+        "mesh", help="triangle meshes: fan_cloud_to_mesh against MeshLib, pymeshlab, VTK",
+        description="Every method meshes the same points, each in its own process with a "
+                    "timeout; time, triangles per point, non-manifold edges and vertices, "
+                    "boundary edges, holes, self-intersections, unused points and the distance "
+                    "to the reference surface. Writes mesh.md, mesh.json and mesh.png.")
+    p.add_argument("--data", nargs="+", default=["bunny", "sphere"], metavar="DATA",
+                   help="bunny (pymeshlab's bunny.obj points), sphere (--n random points on "
+                        "the unit sphere) or a number of sphere points (5k, 1M); several "
+                        "allowed (default: bunny sphere)")
+    p.add_argument("--n", default="100k", help="points of 'sphere' (default: %(default)s)")
+    p.add_argument("--methods", nargs="+", default=list(METHODS), type=_method_arg,
+                   metavar="METHOD",
+                   help=f"subset of {', '.join(METHODS)}, or module:function loaders "
+                        "(see fancloud_vtk._bench_peers) (default: all)")
+    p.add_argument("--timeout", type=float, default=MESH_TIMEOUT,
+                   help="seconds per method and data set, warm-up included; a method still "
+                        "running is killed and reported (default: %(default)s)")
+    p.add_argument("--repeat", type=int, default=1,
+                   help="timed runs per method, best kept (default: %(default)s)")
+    p.add_argument("--samples", type=int, default=SAMPLES_PER_POINT,
+                   help="surface samples per input point for the distance "
+                        "(default: %(default)s)")
+    p.add_argument("--self-intersections", action=argparse.BooleanOptionalAction, default=True,
+                   help="count self-intersecting triangle pairs (the slowest statistic)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    p.add_argument("--out", default="bench_out", help="output folder (default: %(default)s)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
+    p.set_defaults(func=_cmd_mesh)
     return parser
+
+
+def _method_arg(text: str) -> str:
+    from fancloud_vtk._bench_peers import method_for
+
+    try:
+        method_for(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from exc
+    return text
 
 
 def main(argv=None) -> int:
     """Run a benchmark: ``main(['fans', '--sizes', '100k,1M'])``."""
     argv = list(sys.argv[1:] if argv is None else argv)
     args = make_parser().parse_args(argv)
-    if args.mode == "fans" and args.repeat < 1:
+    if args.repeat < 1:
         raise ValueError("--repeat must be at least 1")
+    if args.mode == "mesh" and (args.timeout <= 0 or args.samples < 0):
+        raise ValueError("--timeout must be positive and --samples not negative")
     return args.func(args, argv[1:])
 
 

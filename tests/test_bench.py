@@ -1,6 +1,7 @@
-"""Smoke test of ``fancloud bench fans`` on tiny sizes, through the command line."""
+"""Smoke tests of ``fancloud bench fans`` and ``fancloud bench mesh`` on tiny sizes."""
 
 import json
+import os
 
 import numpy as np
 import pytest
@@ -114,3 +115,145 @@ def test_bench_requires_a_mode(capsys):
 
     with pytest.raises(SystemExit):
         main([])
+
+
+# -- bench mesh ---------------------------------------------------------------------------
+
+#: Loaders of the ``--methods module:function`` protocol that go wrong in every way.
+_FAKE_PEERS = '''
+import time
+
+
+def load_missing():
+    import no_such_package_for_the_bench  # noqa: F401
+
+
+def load_fail():
+    def run(points):
+        raise RuntimeError("this method always fails")
+    return run
+
+
+def load_crash():
+    def run(points):
+        import ctypes
+        ctypes.string_at(0)  # segmentation fault
+    return run
+
+
+def load_hang():
+    def run(points):
+        time.sleep(3600)
+    return run
+'''
+
+
+@pytest.fixture
+def fake_peers(tmp_path, monkeypatch):
+    """A module ``fake_bench_peers`` on the path of the benchmark's subprocesses."""
+    folder = tmp_path / "fake"
+    folder.mkdir()
+    (folder / "fake_bench_peers.py").write_text(_FAKE_PEERS)
+    old = [p for p in [os.environ.get("PYTHONPATH")] if p]
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(folder), *old]))
+    return "fake_bench_peers"
+
+
+def test_parse_data():
+    from fancloud_vtk.bench import parse_data
+
+    assert parse_data(["bunny", "sphere", "5k,2000"], 100) == [
+        ("bunny", None), ("sphere", 100), ("sphere", 5000), ("sphere", 2000)]
+    with pytest.raises(ValueError):
+        parse_data(["torus"], 100)
+
+
+def _tables(text):
+    """Every Markdown table in ``text``: a list of (header, rows as dicts)."""
+    tables, block = [], []
+    for line in [*text.splitlines(), ""]:
+        if line.startswith("|"):
+            block.append([c.strip() for c in line.strip("|").split("|")])
+        elif block:
+            header = block[0]
+            tables.append((header, [dict(zip(header, r, strict=True)) for r in block[2:]]))
+            block = []
+    return tables
+
+
+def test_bench_mesh_smoke(tmp_path, capsys, fake_peers):
+    from fancloud_vtk.bench import COLUMNS, COMPARE_COLUMNS
+
+    out = tmp_path / "bench"
+    argv = ["bench", "mesh", "--data", "3000", "--methods", "ours", "meshlib", "ball-pivoting",
+            f"{fake_peers}:load_missing", "--timeout", "120", "--samples", "2",
+            "--out", str(out), "-q"]
+    assert cli_main(argv) == 0
+
+    text = (out / "mesh.md").read_text()
+    assert text in capsys.readouterr().out
+    assert (out / "mesh.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    tables = _tables(text)
+    header, figures = tables[0]
+    assert tuple(header) == COLUMNS
+    names = {row["figure"] for row in figures}
+    assert {"mesh: non-manifold edges", "mesh: non-manifold vertices",
+            "mesh: triangles per point (closed surface)",
+            "mesh: self-intersecting triangle pairs", "speed: time ours / MeshLib",
+            "speed: ball pivoting time / ours"} <= names
+    for row in figures:
+        assert row["verdict"] in ("yes", "NO", "not measured", ""), row
+
+    header, compare = tables[1]
+    assert tuple(header) == COMPARE_COLUMNS
+    by_method = {row["method"]: row for row in compare}
+    assert len(by_method) == 4
+    ours = by_method["fancloud_vtk (this project)"]
+    assert ours["status"] == "ok" or ours["status"].startswith(
+        "missing: fan_cloud_to_mesh not available (ImportError"), ours
+    missing = by_method[f"{fake_peers}:load_missing"]
+    assert missing["status"].startswith(f"missing: {fake_peers}:load_missing not available "
+                                        "(ModuleNotFoundError"), missing
+    assert missing["time (s)"] == "-"
+    for label in ("MeshLib triangulatePointCloud", "pymeshlab ball pivoting"):
+        row = by_method[label]
+        assert row["status"].startswith("ok"), row
+        assert float(row["time (s)"]) > 0
+        assert int(row["triangles"].replace(",", "")) > 3000
+        if "statistics:" not in row["status"]:  # mesh_statistics available
+            assert 1.0 < float(row["triangles / point"]) <= 2.0
+            assert int(row["non-manifold edges"].replace(",", "")) >= 0
+        assert 0 <= float(row["distance mean"]) <= float(row["distance max"]) < 0.01
+
+    raw = json.loads((out / "mesh.json").read_text())
+    assert raw["args"]["data"] == ["sphere:3000"]
+    methods = raw["datasets"][0]["methods"]
+    assert [m["method"] for m in methods][:3] == ["ours", "meshlib", "ball-pivoting"]
+    assert methods[1]["status"] == "ok" and methods[1]["n_triangles"] > 3000
+    assert methods[1]["distance"]["samples"] == 2 * 3000
+    assert raw["peers"]["meshlib"] is None or methods[1]["time"] > 0
+
+
+@pytest.mark.parametrize(("loader", "status", "message"), [
+    ("load_fail", "failed", "failed: RuntimeError: this method always fails"),
+    ("load_crash", "crashed", "crashed (SIGSEGV"),
+    ("load_hang", "timeout", "timed out after 2 s"),
+])
+def test_bench_mesh_reports_broken_methods(tmp_path, fake_peers, loader, status, message):
+    from fancloud_vtk._bench_peers import method_for, run_method
+    from fancloud_vtk.bench import compare_rows
+
+    points = tmp_path / "points.npy"
+    np.save(points, surface_points(500, seed=0, shape="sphere"))
+    r = run_method(method_for(f"{fake_peers}:{loader}"), str(points), str(tmp_path),
+                   timeout=2, warmup=0)
+    assert r["status"] == status
+    assert r["message"].startswith(message), r["message"]
+    assert "vertices" not in r and r["time"] is None
+    row = compare_rows({"methods": [r]})[0]
+    assert row["status"] == r["message"]
+    if status == "timeout":  # killed while timed (no warm-up): at least this long
+        assert 0 < r["time_lower_bound"] <= 2.5
+        assert row["time (s)"].startswith("> ")
+    else:
+        assert row["time (s)"] == "-"

@@ -1,0 +1,467 @@
+"""The surface-reconstruction methods compared by ``fancloud bench mesh``, and how they run.
+
+Each method is a *loader*: a function that imports what the method needs
+(an :class:`ImportError` there means the method is missing) and returns a
+``run(points)`` callable. ``run`` returns a dict:
+
+``vertices``
+    ``(v, 3)`` float array, the mesh's points;
+``triangles``
+    ``(m, 3)`` integer indices into ``vertices``;
+``new_points``
+    True when ``vertices`` are new points (an iso-surface), not the input;
+``info``
+    anything JSON-serialisable worth keeping (stage counts, parameters).
+
+``--methods`` also accepts ``module:function`` loaders of this form.
+
+:func:`run_method` (the benchmark's side) runs one loader in a fresh process,
+:func:`child_main`, with a timeout. The child warms the method up on a small
+cloud, times ``run`` on the points, and writes ``result.json`` (before and
+after every timed run) and ``mesh.npz`` (after the first), so a method that
+is missing, raises, crashes (a segfault) or hangs is reported as such instead
+of taking the benchmark down. :func:`mesh_statistics_of` and
+:func:`surface_distance` then measure the mesh in the benchmark's process.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import traceback
+from dataclasses import dataclass
+
+import numpy as np
+
+K = 6  #: neighbours per fan (the paper's default), as in ``bench fans``
+
+
+@dataclass(frozen=True)
+class Method:
+    """A method of the comparison: its name, loader and how it is called."""
+
+    name: str
+    label: str
+    loader: str  #: ``module:function`` returning ``run(points)``
+    call: str  #: the calls timed, for the table
+    new_points: bool = False  #: output vertices are new points (unused points: n/a)
+
+
+def _result(vertices, triangles, *, new_points=False, **info) -> dict:
+    return {"vertices": np.asarray(vertices, dtype=np.float64),
+            "triangles": np.asarray(triangles, dtype=np.int64).reshape(-1, 3),
+            "new_points": new_points, "info": info}
+
+
+# -- the methods ----------------------------------------------------------------------
+
+
+def load_ours():
+    """This project: build_fans, then fan_cloud_to_mesh (timed together)."""
+    from fancloud_vtk import build_fans, fan_cloud_to_mesh
+
+    def run(points):
+        t0 = time.perf_counter()
+        fc = build_fans(points, k=K)
+        t1 = time.perf_counter()
+        mesh = fan_cloud_to_mesh(fc, close_holes=True)
+        t2 = time.perf_counter()
+        stats = _plain(dict(getattr(mesh, "stats", None) or {}))
+        stages = {k: v for k, v in stats.items() if isinstance(v, int | float)}
+        return _result(getattr(mesh, "points", fc.points), mesh.triangles,
+                       build_fans_time=t1 - t0, to_mesh_time=t2 - t1, stages=stages,
+                       other_stats={k: v for k, v in stats.items() if k not in stages},
+                       fans_open=int(fc.n_open),
+                       duplicates_merged=int(fc.info.get("duplicates_merged", 0)))
+
+    return run
+
+
+def load_meshlib():
+    """MeshLib: ``triangulatePointCloud`` with its default parameters."""
+    import meshlib.mrmeshnumpy as mn
+    import meshlib.mrmeshpy as mm
+
+    def run(points):
+        cloud = mn.pointCloudFromPoints(np.ascontiguousarray(points, dtype=np.float64))
+        mesh = mm.triangulatePointCloud(cloud)
+        if mesh is None:
+            raise RuntimeError("triangulatePointCloud returned no mesh (interrupted)")
+        triangles = mn.getNumpyFaces(mesh.topology)
+        # MeshLib keeps the input points, in order (stored as float32); keep the exact ones
+        verts = points if mesh.points.size() == len(points) else mn.getNumpyVerts(mesh)
+        return _result(verts, triangles)
+
+    return run
+
+
+def _pymeshlab_cloud(points):
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    ms.add_mesh(pymeshlab.Mesh(np.ascontiguousarray(points, dtype=np.float64)))
+    ms.compute_normal_for_point_clouds()
+    return ms
+
+
+def load_ball_pivoting():
+    """pymeshlab ball pivoting, normals from its point-cloud filter, default parameters."""
+    import pymeshlab  # noqa: F401
+
+    def run(points):
+        ms = _pymeshlab_cloud(points)
+        ms.generate_surface_reconstruction_ball_pivoting()
+        m = ms.current_mesh()
+        return _result(m.vertex_matrix(), m.face_matrix())
+
+    return run
+
+
+def load_poisson():
+    """pymeshlab screened Poisson, normals from its point-cloud filter, default parameters."""
+    import pymeshlab  # noqa: F401
+
+    def run(points):
+        ms = _pymeshlab_cloud(points)
+        ms.generate_surface_reconstruction_screened_poisson()
+        m = ms.current_mesh()
+        return _result(m.vertex_matrix(), m.face_matrix(), new_points=True)
+
+    return run
+
+
+def load_vtk():
+    """VTK: vtkSurfaceReconstructionFilter, then vtkContourFilter at 0."""
+    from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+    from vtkmodules.vtkCommonCore import vtkPoints
+    from vtkmodules.vtkCommonDataModel import vtkPolyData
+    from vtkmodules.vtkFiltersCore import vtkContourFilter
+    from vtkmodules.vtkImagingHybrid import vtkSurfaceReconstructionFilter
+
+    def run(points):
+        pts = vtkPoints()
+        pts.SetData(numpy_to_vtk(np.ascontiguousarray(points, dtype=np.float64), deep=True))
+        cloud = vtkPolyData()
+        cloud.SetPoints(pts)
+        recon = vtkSurfaceReconstructionFilter()
+        recon.SetInputData(cloud)
+        contour = vtkContourFilter()
+        contour.SetInputConnection(recon.GetOutputPort())
+        contour.SetValue(0, 0.0)
+        contour.Update()
+        out = contour.GetOutput()
+        if out.GetNumberOfPoints() == 0:
+            return _result(np.empty((0, 3)), np.empty((0, 3)), new_points=True,
+                           sample_spacing=recon.GetSampleSpacing())
+        polys = out.GetPolys()
+        conn = vtk_to_numpy(polys.GetConnectivityArray())
+        offsets = vtk_to_numpy(polys.GetOffsetsArray())
+        if not np.all(np.diff(offsets) == 3):
+            raise RuntimeError("vtkContourFilter returned polygons that are not triangles")
+        return _result(vtk_to_numpy(out.GetPoints().GetData()), conn.reshape(-1, 3),
+                       new_points=True, sample_spacing=recon.GetSampleSpacing(),
+                       neighborhood_size=recon.GetNeighborhoodSize())
+
+    return run
+
+
+_HERE = __name__
+
+METHODS = {m.name: m for m in (
+    Method("ours", "fancloud_vtk (this project)", f"{_HERE}:load_ours",
+           f"build_fans(points, k={K}) + fan_cloud_to_mesh(fc, close_holes=True)"),
+    Method("meshlib", "MeshLib triangulatePointCloud", f"{_HERE}:load_meshlib",
+           "mrmeshnumpy.pointCloudFromPoints(points) + mrmeshpy.triangulatePointCloud(cloud), "
+           "default TriangulationParameters (numNeighbours 16, critAngle 90 deg, "
+           "automaticRadiusIncrease)"),
+    Method("ball-pivoting", "pymeshlab ball pivoting", f"{_HERE}:load_ball_pivoting",
+           "compute_normal_for_point_clouds() (k=10) + "
+           "generate_surface_reconstruction_ball_pivoting() (defaults: radius auto, "
+           "clustering 20%, creasethr 90)"),
+    Method("poisson", "pymeshlab screened Poisson", f"{_HERE}:load_poisson",
+           "compute_normal_for_point_clouds() (k=10) + "
+           "generate_surface_reconstruction_screened_poisson() (defaults: depth 8, "
+           "samplespernode 1.5, pointweight 4, threads 2)", new_points=True),
+    Method("vtk", "VTK vtkSurfaceReconstructionFilter", f"{_HERE}:load_vtk",
+           "vtkSurfaceReconstructionFilter (neighbourhood 20, spacing auto) + "
+           "vtkContourFilter(value 0)", new_points=True),
+)}
+
+#: What a missing method needs, for its "missing: ... not available" message.
+REQUIRES = {"ours": "fan_cloud_to_mesh", "meshlib": "meshlib (pip install meshlib)",
+            "ball-pivoting": "pymeshlab", "poisson": "pymeshlab", "vtk": "vtk"}
+
+
+def method_for(spec: str) -> Method:
+    """A registered method by name, or a ``module:function`` loader of the same protocol."""
+    if spec in METHODS:
+        return METHODS[spec]
+    if ":" in spec:
+        return Method(spec, spec, spec, f"{spec} (user loader)")
+    raise ValueError(f"unknown method {spec!r}: one of {', '.join(METHODS)} or module:function")
+
+
+# -- the subprocess ------------------------------------------------------------------------
+
+
+def _import_loader(path: str):
+    import importlib
+
+    module, _, attr = path.partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
+def _short(exc: BaseException, limit: int = 240) -> str:
+    """``Type: message`` on one line, without the file path ImportError appends, shortened."""
+    import re
+
+    text = " ".join(str(exc).split())
+    text = re.sub(r"\s*\((?:unknown location|/[^)]*)\)$", "", text)
+    if len(text) > limit:
+        text = text[: limit - 3] + "..."
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _write_json(path: str, data: dict) -> None:
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(data, f, default=str)
+    os.replace(tmp, path)
+
+
+def child_main(argv: list[str]) -> int:
+    """``NAME LOADER POINTS.npy OUT_DIR REPEAT WARMUP_N``: run one method, write its results."""
+    name, loader, points_path, out_dir, repeat, warmup_n = argv
+    repeat, warmup_n = int(repeat), int(warmup_n)
+    result_path = os.path.join(out_dir, "result.json")
+    res = {"name": name, "status": "running", "times": []}
+    try:
+        run = _import_loader(loader)()
+    except ImportError as exc:
+        res.update(status="missing", error=_short(exc))
+        _write_json(result_path, res)
+        return 0
+    except Exception as exc:
+        res.update(status="failed", error="loading: " + _short(exc),
+                   traceback=traceback.format_exc()[-3000:])
+        _write_json(result_path, res)
+        return 0
+    points = np.load(points_path)
+    try:
+        if warmup_n:
+            from fancloud_vtk.bench import surface_points
+
+            t0 = time.perf_counter()
+            run(surface_points(warmup_n, 1, "sphere"))
+            res["warmup_time"] = time.perf_counter() - t0
+            res["warmup_points"] = warmup_n
+        _write_json(result_path, res)
+        for i in range(repeat):
+            res["timed_start_epoch"] = time.time()
+            _write_json(result_path, res)
+            t0 = time.perf_counter()
+            out = run(points)
+            res["times"].append(time.perf_counter() - t0)
+            if i == 0:
+                tmp = os.path.join(out_dir, "mesh.tmp.npz")
+                np.savez(tmp, vertices=np.asarray(out["vertices"], dtype=np.float64),
+                         triangles=np.asarray(out["triangles"], dtype=np.int64).reshape(-1, 3))
+                os.replace(tmp, os.path.join(out_dir, "mesh.npz"))
+                res["new_points"] = bool(out.get("new_points", False))
+                res["info"] = out.get("info", {})
+            del out
+            res["status"] = "ok" if i == repeat - 1 else "running"
+            _write_json(result_path, res)
+    except Exception as exc:
+        res.update(status="failed", error=_short(exc),
+                   traceback=traceback.format_exc()[-3000:])
+        _write_json(result_path, res)
+    return 0
+
+
+# -- the parent side: a method's process, and the measures of its mesh ---------------------
+
+SAMPLE_CHUNK = 1 << 20  #: surface samples per chunk
+
+_PEER_CHILD = ("import sys; from fancloud_vtk._bench_peers import child_main; "
+               "sys.exit(child_main(sys.argv[1:]))")
+
+
+class MeshDistance:
+    """Unsigned distance to a triangle mesh (``vtkImplicitPolyDataDistance``), vectorised."""
+
+    def __init__(self, points: np.ndarray, triangles: np.ndarray):
+        from vtkmodules.util.numpy_support import numpy_to_vtk, numpy_to_vtkIdTypeArray
+        from vtkmodules.vtkCommonCore import vtkPoints
+        from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+        from vtkmodules.vtkFiltersCore import vtkImplicitPolyDataDistance
+
+        pts = vtkPoints()
+        pts.SetData(numpy_to_vtk(np.ascontiguousarray(points, dtype=np.float64), deep=True))
+        polys = vtkCellArray()
+        polys.SetData(3, numpy_to_vtkIdTypeArray(
+            np.ascontiguousarray(triangles, dtype=np.int64).ravel(), deep=True))
+        self._mesh = vtkPolyData()
+        self._mesh.SetPoints(pts)
+        self._mesh.SetPolys(polys)
+        self._distance = vtkImplicitPolyDataDistance()
+        self._distance.SetInput(self._mesh)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+        from vtkmodules.vtkCommonCore import vtkDoubleArray
+
+        out = vtkDoubleArray()
+        self._distance.FunctionValue(numpy_to_vtk(np.ascontiguousarray(x), deep=True), out)
+        return np.abs(vtk_to_numpy(out))
+
+
+def sphere_distance(x: np.ndarray) -> np.ndarray:
+    """Distance to the unit sphere."""
+    return np.abs(np.linalg.norm(x, axis=1) - 1.0)
+
+
+def surface_distance(vertices, triangles, distance, n_samples: int, seed: int = 0) -> dict:
+    """Distance of a mesh to a reference surface: area-weighted samples plus the used vertices.
+
+    ``n_samples`` points uniform on the mesh's surface (triangle chosen by
+    area, uniform barycentric coordinates), in chunks; the mean is over the
+    samples, the max over the samples and every vertex of a triangle.
+    """
+    v = np.asarray(vertices, dtype=np.float64)
+    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+    if len(t) == 0:
+        return {"mean": None, "max": None, "samples": 0}
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    cum = np.cumsum(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1))
+    dmax = float(distance(v[np.unique(t)]).max())
+    total, dsum, done = cum[-1], 0.0, 0
+    rng = np.random.default_rng(seed)
+    while total > 0 and done < n_samples:
+        m = min(SAMPLE_CHUNK, n_samples - done)
+        idx = np.minimum(np.searchsorted(cum, rng.random(m) * total, side="right"), len(t) - 1)
+        r1 = np.sqrt(rng.random(m))[:, None]
+        r2 = rng.random(m)[:, None]
+        x = (1.0 - r1) * a[idx] + r1 * (1.0 - r2) * b[idx] + r1 * r2 * c[idx]
+        d = distance(x)
+        dsum += float(d.sum())
+        dmax = max(dmax, float(d.max()))
+        done += m
+    return {"mean": dsum / done if done else None, "max": dmax, "samples": done}
+
+
+def _plain(value):
+    """numpy scalars and arrays to Python objects (for JSON), recursively through containers."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    return value.item() if isinstance(value, np.generic) else value
+
+
+def mesh_statistics_of(vertices, triangles, self_intersections: bool) -> dict:
+    """:func:`fancloud_vtk.core.mesh_stats.mesh_statistics`, or why it is not available."""
+    try:
+        from fancloud_vtk.core.mesh_stats import mesh_statistics
+    except ImportError as exc:
+        return {"error": f"mesh_statistics not available ({_short(exc)})"}
+    try:
+        t0 = time.perf_counter()
+        stats = _plain(dict(mesh_statistics(vertices, triangles,
+                                            self_intersections=self_intersections)))
+        if (stats.get("self_intersections") or 0) < 0:
+            stats["self_intersections"] = None  # -1: not computed
+        return {**stats, "time": time.perf_counter() - t0}
+    except Exception as exc:
+        return {"error": f"mesh_statistics failed ({_short(exc)})"}
+
+
+def _signal_name(code: int) -> str:
+    import signal
+
+    try:
+        return signal.Signals(-code).name
+    except ValueError:
+        return f"signal {-code}"
+
+
+def _last_line(path: str) -> str:
+    """The last line of a child's stderr, or faulthandler's ``Fatal Python error`` line."""
+    with open(path, errors="replace") as f:
+        lines = [line.strip() for line in f.read().splitlines() if line.strip()]
+    fatal = [line for line in lines if line.startswith("Fatal Python error")]
+    return (fatal or lines or ["no output on stderr"])[-1][:300]
+
+
+def run_method(method, points_path: str, work_dir: str, *, timeout: float, repeat: int = 1,
+               warmup: int | None = None) -> dict:
+    """Run one method in a fresh process (:func:`child_main`), with a timeout.
+
+    Returns ``status`` (``ok``, ``missing``, ``failed``, ``crashed`` or
+    ``timeout``), ``message`` (for the table), the timed runs and, when a
+    run finished, the mesh (``vertices``, ``triangles``).
+    """
+    from fancloud_vtk.bench import WARMUP_POINTS, _child_env
+
+    warmup = WARMUP_POINTS if warmup is None else warmup
+    out_dir = tempfile.mkdtemp(prefix=f"{method.name.replace(':', '_')}-", dir=work_dir)
+    err_path = os.path.join(out_dir, "stderr.txt")
+    cmd = [sys.executable, "-X", "faulthandler", "-c", _PEER_CHILD, method.name,
+           method.loader, points_path, out_dir, str(repeat), str(warmup)]
+    t0 = time.perf_counter()
+    with open(os.path.join(out_dir, "stdout.txt"), "w") as out, open(err_path, "w") as err:
+        try:
+            code = subprocess.run(cmd, env=_child_env(), stdout=out, stderr=err,
+                                  timeout=timeout, check=False).returncode
+        except subprocess.TimeoutExpired:
+            code = None
+    wall, killed_epoch = time.perf_counter() - t0, time.time()
+    result_path = os.path.join(out_dir, "result.json")
+    child = {}
+    if os.path.isfile(result_path):
+        with open(result_path) as f:
+            child = json.load(f)
+    times = child.get("times", [])
+    res = {"method": method.name, "label": method.label, "call": method.call,
+           "new_points": bool(child.get("new_points", method.new_points)), "times": times,
+           "time": min(times) if times else None, "warmup_time": child.get("warmup_time"),
+           "wall_time": wall, "exit_code": code, "info": child.get("info", {})}
+    started = child.get("timed_start_epoch")
+    phase = "while timed" if started else "while loading or warming up"
+    if code is None:
+        status = "ok" if times else "timeout"
+        if started and not times:  # the timed run took at least this long
+            res["time_lower_bound"] = killed_epoch - started
+        message = (f"timed out after {timeout:g} s ({phase})" if not times else
+                   f"ok ({len(times)} of {repeat} runs before the {timeout:g} s timeout)")
+    elif code < 0:
+        status, message = "crashed", (f"crashed ({_signal_name(code)}, {phase}): "
+                                      f"{_last_line(err_path)}")
+    elif child.get("status") == "missing":
+        need = REQUIRES.get(method.name, method.loader)
+        status, message = "missing", f"missing: {need} not available ({child['error']})"
+    elif child.get("status") == "failed":
+        status, message = "failed", f"failed: {child['error']}"
+        res["traceback"] = child.get("traceback")
+    elif code != 0 or child.get("status") != "ok":
+        status, message = "failed", f"failed (exit {code}): {_last_line(err_path)}"
+    else:
+        status, message = "ok", "ok"
+    res.update(status=status, message=message)
+    mesh_path = os.path.join(out_dir, "mesh.npz")
+    if status == "ok" and os.path.isfile(mesh_path):
+        with np.load(mesh_path) as z:
+            res["vertices"], res["triangles"] = z["vertices"], z["triangles"]
+    elif status == "ok":
+        res.update(status="failed", message="failed: the method wrote no mesh")
+    return res
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(child_main(sys.argv[1:]))
