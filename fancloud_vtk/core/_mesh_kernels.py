@@ -689,3 +689,174 @@ def split_pinched(triangles, keep, n):
         dropped += changed
         if changed == 0:
             return dropped
+
+
+# -- holes -------------------------------------------------------------------
+
+@njit(cache=True)
+def _has_key(keys, x):
+    i = np.searchsorted(keys, x)
+    return i < keys.shape[0] and keys[i] == x
+
+
+@njit(cache=True)
+def _min_angle_cos(points, a, b, c):
+    """The largest cosine of the three angles of a triangle (that of its smallest angle)."""
+    best = -1.0
+    for k in range(3):
+        if k == 0:
+            u, v, w = a, b, c
+        elif k == 1:
+            u, v, w = b, c, a
+        else:
+            u, v, w = c, a, b
+        e1x = points[v, 0] - points[u, 0]
+        e1y = points[v, 1] - points[u, 1]
+        e1z = points[v, 2] - points[u, 2]
+        e2x = points[w, 0] - points[u, 0]
+        e2y = points[w, 1] - points[u, 1]
+        e2z = points[w, 2] - points[u, 2]
+        d = np.sqrt((e1x * e1x + e1y * e1y + e1z * e1z) * (e2x * e2x + e2y * e2y + e2z * e2z))
+        cs = (e1x * e2x + e1y * e2y + e1z * e2z) / d if d > 0.0 else 1.0
+        if cs > best:
+            best = cs
+    return best
+
+
+@njit(cache=True)
+def clip_ears(points, normals, loop_off, loop_verts, edge_keys, cand_keys, cand_counts, n,
+              out, ok):
+    """Triangulate boundary loops by clipping the best ear first.
+
+    Loop ``i`` is ``loop_verts[loop_off[i]:loop_off[i + 1]]`` along the
+    mesh's boundary half-edges; its ``L - 2`` triangles go to ``out`` from
+    row ``loop_off[i] - 2 i`` on, counter-clockwise around the normals
+    (against the boundary half-edges). An ear (a, b, c) is convex in b's
+    tangent plane, holds no other loop point there, and its new edge a-c is
+    neither in the mesh (``edge_keys``, sorted packed edges) nor made
+    earlier for this loop; the best ear is a fan triangle (the most fans,
+    from ``cand_keys``/``cand_counts``), then the one with the largest
+    smallest angle. ``ok[i]`` is False for a loop that cannot be closed so.
+    """
+    n_loops = loop_off.shape[0] - 1
+    for i in range(n_loops):
+        L = loop_off[i + 1] - loop_off[i]
+        poly = np.empty(L, np.int64)
+        for j in range(L):
+            poly[j] = loop_verts[loop_off[i + 1] - 1 - j]  # reversed: counter-clockwise
+        diag = np.empty(max(L, 1), np.int64)
+        nd = 0
+        row = loop_off[i] - 2 * i
+        m = L
+        good = True
+        while m > 3:
+            best = -1
+            best_cnt = -1
+            best_cos = 2.0
+            for j in range(m):
+                a = poly[(j - 1 + m) % m]
+                b = poly[j]
+                c = poly[(j + 1) % m]
+                key = min(a, c) * n + max(a, c)
+                if _has_key(edge_keys, key):
+                    continue
+                dup = False
+                for t in range(nd):
+                    if diag[t] == key:
+                        dup = True
+                        break
+                if dup:
+                    continue
+                nx, ny, nz = normals[b, 0], normals[b, 1], normals[b, 2]
+                if abs(nx) < 0.9:
+                    ux, uy, uz = 0.0, nz, -ny
+                else:
+                    ux, uy, uz = -nz, 0.0, nx
+                s = np.sqrt(ux * ux + uy * uy + uz * uz)
+                ux /= s
+                uy /= s
+                uz /= s
+                vx = ny * uz - nz * uy
+                vy = nz * ux - nx * uz
+                vz = nx * uy - ny * ux
+                ax = (points[a, 0] - points[b, 0]) * ux + (points[a, 1] - points[b, 1]) * uy \
+                    + (points[a, 2] - points[b, 2]) * uz
+                ay = (points[a, 0] - points[b, 0]) * vx + (points[a, 1] - points[b, 1]) * vy \
+                    + (points[a, 2] - points[b, 2]) * vz
+                cx = (points[c, 0] - points[b, 0]) * ux + (points[c, 1] - points[b, 1]) * uy \
+                    + (points[c, 2] - points[b, 2]) * uz
+                cy = (points[c, 0] - points[b, 0]) * vx + (points[c, 1] - points[b, 1]) * vy \
+                    + (points[c, 2] - points[b, 2]) * vz
+                # convex at b: (b - a) x (c - b) > 0, with b at the origin
+                if (-ax) * cy - (-ay) * cx <= 0.0:
+                    continue
+                inside = False
+                for k in range(m):
+                    q = poly[k]
+                    if q == a or q == b or q == c:
+                        continue
+                    dx = points[q, 0] - points[b, 0]
+                    dy = points[q, 1] - points[b, 1]
+                    dz = points[q, 2] - points[b, 2]
+                    qx = dx * ux + dy * uy + dz * uz
+                    qy = dx * vx + dy * vy + dz * vz
+                    # inside or on the counter-clockwise triangle a, b(0), c
+                    if (0.0 - ax) * (qy - ay) - (0.0 - ay) * (qx - ax) >= 0.0 and \
+                            (cx - 0.0) * (qy - 0.0) - (cy - 0.0) * (qx - 0.0) >= 0.0 and \
+                            (ax - cx) * (qy - cy) - (ay - cy) * (qx - cx) >= 0.0:
+                        inside = True
+                        break
+                if inside:
+                    continue
+                x0, x1, x2 = a, b, c
+                if x0 > x1:
+                    x0, x1 = x1, x0
+                if x1 > x2:
+                    x1, x2 = x2, x1
+                if x0 > x1:
+                    x0, x1 = x1, x0
+                k_t = np.searchsorted(cand_keys, (x0 * n + x1) * n + x2)
+                cnt = 0
+                if k_t < cand_keys.shape[0] and cand_keys[k_t] == (x0 * n + x1) * n + x2:
+                    cnt = cand_counts[k_t]
+                cs = _min_angle_cos(points, a, b, c)
+                if cnt > best_cnt or (cnt == best_cnt and cs < best_cos):
+                    best = j
+                    best_cnt = cnt
+                    best_cos = cs
+            if best < 0:
+                good = False
+                break
+            a = poly[(best - 1 + m) % m]
+            b = poly[best]
+            c = poly[(best + 1) % m]
+            out[row, 0] = a
+            out[row, 1] = b
+            out[row, 2] = c
+            row += 1
+            diag[nd] = min(a, c) * n + max(a, c)
+            nd += 1
+            for j in range(best, m - 1):
+                poly[j] = poly[j + 1]
+            m -= 1
+        if good:
+            a, b, c = poly[0], poly[1], poly[2]
+            e1x = points[b, 0] - points[a, 0]
+            e1y = points[b, 1] - points[a, 1]
+            e1z = points[b, 2] - points[a, 2]
+            e2x = points[c, 0] - points[a, 0]
+            e2y = points[c, 1] - points[a, 1]
+            e2z = points[c, 2] - points[a, 2]
+            fx = e1y * e2z - e1z * e2y
+            fy = e1z * e2x - e1x * e2z
+            fz = e1x * e2y - e1y * e2x
+            agree = 0.0
+            for v in (a, b, c):
+                agree += fx * normals[v, 0] + fy * normals[v, 1] + fz * normals[v, 2]
+            if agree <= 0.0:
+                good = False
+            else:
+                out[row, 0] = a
+                out[row, 1] = b
+                out[row, 2] = c
+        ok[i] = good

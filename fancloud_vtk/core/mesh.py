@@ -202,8 +202,10 @@ def fan_cloud_to_mesh(
     stats["points_inserted"] = 0
     if close_holes:
         triangles, closed, inserted = _close_holes(fancloud, triangles, tri, count, max_hole)
-        triangles, split = _insert_unused(fancloud, triangles)
-        inserted += split
+        split = 1
+        while split:  # two points over one triangle: the second goes in next round
+            triangles, split = _insert_unused(fancloud, triangles)
+            inserted += split
         stats["holes_closed"] = closed
         stats["points_inserted"] = inserted
     stats["final"] = len(triangles)
@@ -305,70 +307,30 @@ def _vertex_edges(edge_uv: np.ndarray, n: int):
 
 # -- holes -------------------------------------------------------------------------
 
-def _boundary_loops(triangles: np.ndarray) -> list[np.ndarray]:
-    """Boundary loops of a vertex-manifold mesh, along its boundary half-edges."""
-    if len(triangles) == 0:
-        return []
-    a = triangles.ravel()
-    b = np.roll(triangles, -1, axis=1).ravel()
-    n = int(max(a.max(), b.max())) + 1
-    fwd = a * n + b
-    rev = b * n + a
-    boundary = ~np.isin(fwd, rev)
-    ba, bb = a[boundary], b[boundary]
-    nxt = dict(zip(ba.tolist(), bb.tolist(), strict=True)) if len(set(ba.tolist())) == len(ba) \
-        else None
-    if nxt is None:  # a vertex on two boundary stretches: follow half-edges one by one
-        nxt = {}
-        for x, y in zip(ba.tolist(), bb.tolist(), strict=True):
-            nxt.setdefault(x, []).append(y)
-        return _loops_multi(nxt)
-    loops = []
-    seen = set()
-    for start in sorted(nxt):
-        if start in seen:
-            continue
-        loop = [start]
-        seen.add(start)
-        x = nxt[start]
-        while x != start and x not in seen and x in nxt:
-            loop.append(x)
-            seen.add(x)
-            x = nxt[x]
-        loops.append(np.array(loop, np.int64))
-    return loops
-
-
-def _loops_multi(nxt: dict) -> list[np.ndarray]:
-    loops = []
-    for start in sorted(nxt):
-        while nxt.get(start):
-            loop = [start]
-            x = nxt[start].pop(0)
-            while x != start and nxt.get(x):
-                loop.append(x)
-                x = nxt[x].pop(0)
-            loops.append(np.array(loop, np.int64))
-    return loops
-
-
 def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds=3):
-    """Triangulate the small boundary loops whose points all have closed fans.
+    """Triangulate the small boundary loops that are holes, not the real boundary.
 
     A loop with a single unused point inside gets a star around it; with
     unused points (or when the star fails), the loop and those points get a
     Delaunay triangulation in the loop's mean tangent plane, kept only if
-    it has every loop edge; otherwise (and for loops with no unused point)
-    the loop is clipped ear by ear. A loop that cannot be closed is widened
-    by the triangles around it and tried again (``rounds`` times).
-    Returns (triangles, holes closed, points inserted).
+    it has every loop edge; otherwise (and for loops with no unused point:
+    most of them, in one numba call) the loop is clipped ear by ear. A loop
+    that cannot be closed is widened by the triangles around it and tried
+    again (``rounds`` times). Returns (triangles, holes closed, points
+    inserted).
     """
+    from .mesh_stats import boundary_loops
+
     n = fc.n_points
-    cand = _candidate_counts(cand_tri, cand_count, n)
+    ks = np.sort(cand_tri, axis=1)
+    cand_keys = (ks[:, 0] * n + ks[:, 1]) * n + ks[:, 2]
+    order = np.argsort(cand_keys, kind="stable")
+    cand_keys, cand_counts = cand_keys[order], cand_count[order]
     closed = inserted = 0
     for _ in range(rounds):
-        loops = [lp for lp in _boundary_loops(triangles)
-                 if len(lp) == 3 or (len(lp) <= max_hole and not _on_real_boundary(fc, lp))]
+        loops = [lp for lp in boundary_loops(triangles)
+                 if len(lp) == 3 or (len(lp) <= max_hole
+                                     and not (fc.open[lp].any() and _on_real_boundary(fc, lp)))]
         if not loops:
             break
         used = np.zeros(n, bool)
@@ -382,27 +344,39 @@ def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds
             ids = ids[ids >= 0]
             if len(ids):
                 interior.setdefault(int(np.bincount(ids).argmax()), []).append(p)
-        edges = _edge_set(triangles, n)
+        edge_keys = _edge_keys(triangles, n)
         new = []
         failed = []
+        plain = []
         for i, loop in enumerate(loops):
             pts = interior.get(i, [])
-            tris = None
-            if len(pts) == 1:
-                tris = _star(fc, loop, pts[0], edges, n)
-            if tris is None and pts:
-                tris = _delaunay_fill(fc, loop, pts, edges, n)
-            if tris is None:  # (unused points inside are split in afterwards)
-                tris = _clip_ears(fc, loop, edges, cand, n)
-            if tris is None:
-                failed.append(loop)
+            if not pts:
+                plain.append(loop)
                 continue
-            new.extend(tris)
-            _add_edges(edges, tris, n)
+            tris = _star(fc, loop, pts[0], edge_keys, n) if len(pts) == 1 else None
+            if tris is None:
+                tris = _delaunay_fill(fc, loop, pts, edge_keys, n)
+            if tris is None:  # the points inside are split in afterwards
+                plain.append(loop)
+                continue
+            new.append(np.array(tris, np.int64))
             closed += 1
             inserted += len({int(v) for t in tris for v in t} - set(loop.tolist()))
+        if plain:
+            sizes = np.array([len(lp) for lp in plain], np.int64)
+            loop_off = np.zeros(len(plain) + 1, np.int64)
+            np.cumsum(sizes, out=loop_off[1:])
+            out = np.empty((int((sizes - 2).sum()), 3), np.int64)
+            ok = np.zeros(len(plain), bool)
+            MK.clip_ears(fc.points, fc.normals, loop_off, np.concatenate(plain), edge_keys,
+                         cand_keys, cand_counts, n, out, ok)
+            rows = np.repeat(ok, sizes - 2)
+            new.append(out[rows])
+            closed += int(ok.sum())
+            failed.extend(lp for lp, good in zip(plain, ok.tolist(), strict=True) if not good)
+        new = [t for t in new if len(t)]
         if new:
-            triangles = np.vstack([triangles, np.array(new, np.int64)])
+            triangles = np.vstack([triangles, *new])
         if not failed:
             break
         # widen the holes that failed by the triangles around them, and retry
@@ -416,15 +390,28 @@ def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds
     return triangles, closed, inserted
 
 
+def _edge_keys(triangles, n) -> np.ndarray:
+    """Sorted packed undirected edges ``min * n + max`` of the triangles."""
+    a = triangles.ravel()
+    b = np.roll(triangles, -1, axis=1).ravel()
+    return np.unique(np.minimum(a, b) * n + np.maximum(a, b))
+
+
+def _has_edge(edge_keys, u, v, n) -> bool:
+    key = min(u, v) * n + max(u, v)
+    i = np.searchsorted(edge_keys, key)
+    return bool(i < len(edge_keys) and edge_keys[i] == key)
+
+
 def _insert_unused(fc: FanCloud, triangles):
     """Put each unused point into the triangle it lies over (1 -> 3 split).
 
     Such points were left under a closed part of the surface (a hole closed
     without them); one beside the mesh (on a real boundary) lies over no
-    triangle and stays unused. The triangle is the one among those around the point's
-    fan neighbours that contains its projection (largest smallest
-    barycentric coordinate), among the triangles around its two fan rings.
-    Returns (triangles, points inserted).
+    triangle and stays unused. The triangle is the one among those around
+    the point's two fan rings that contains its projection along its normal
+    (largest smallest barycentric coordinate). Returns (triangles, points
+    inserted).
     """
     n = fc.n_points
     used = np.zeros(n, bool)
@@ -432,49 +419,40 @@ def _insert_unused(fc: FanCloud, triangles):
     todo = np.flatnonzero(~used)
     if len(todo) == 0 or len(triangles) == 0:
         return triangles, 0
-    tris = [tuple(t) for t in triangles.tolist()]
-    at = {}
-    for i, t in enumerate(tris):
-        for v in t:
-            at.setdefault(v, []).append(i)
-    alive = [True] * len(tris)
-    inserted = 0
+    # vertex -> triangles (CSR)
+    flat = triangles.ravel()
+    by_vertex = np.argsort(flat, kind="stable") // 3
+    start = np.zeros(n + 1, np.int64)
+    np.cumsum(np.bincount(flat, minlength=n), out=start[1:])
+    alive = np.ones(len(triangles), bool)
+    extra = []
     pts = fc.points
     for p in todo.tolist():
-        best = None
-        near = set(fc.neighbours(p).tolist())
-        for q in list(near):
-            near.update(fc.neighbours(q).tolist())
-        for q in sorted(near):
-            for i in at.get(q, []):
-                if not alive[i]:
-                    continue
-                a, b, c = (pts[v] for v in tris[i])
-                nrm = np.cross(b - a, c - a)
-                area2 = nrm @ nrm
-                if area2 == 0:
-                    continue
-                w = (np.cross(c - b, pts[p] - b) @ nrm, np.cross(a - c, pts[p] - c) @ nrm,
-                     np.cross(b - a, pts[p] - a) @ nrm)
-                score = min(w) / area2
-                if best is None or score > best[0]:
-                    best = (score, i)
-        if best is None:
+        near = np.unique(np.concatenate(
+            [fc.neighbours(q) for q in fc.neighbours(p).tolist()] + [fc.neighbours(p)]))
+        cand = np.unique(np.concatenate([by_vertex[start[q]:start[q + 1]] for q in near]))
+        cand = cand[alive[cand]]
+        if len(cand) == 0:
             continue
-        i = best[1]
-        a, b, c = tris[i]
-        if any(np.cross(pts[y] - pts[x], pts[p] - pts[x]) @ fc.normals[p] <= 0
-               for x, y in ((a, b), (b, c), (c, a))):
-            continue  # p does not lie over the triangle: splitting it would fold
+        t = triangles[cand]
+        a, b, c = pts[t[:, 0]], pts[t[:, 1]], pts[t[:, 2]]
+        nrm = fc.normals[p]
+        x = pts[p]
+        # signed areas of (a, b, x), (b, c, x), (c, a, x) seen along p's normal
+        w = np.stack([np.cross(b - a, x - a) @ nrm, np.cross(c - b, x - b) @ nrm,
+                      np.cross(a - c, x - c) @ nrm], axis=1)
+        area = np.cross(b - a, c - a) @ nrm
+        score = np.where(area > 0, w.min(axis=1) / np.where(area > 0, area, 1.0), -np.inf)
+        k = int(np.argmax(score))
+        if score[k] <= 0:
+            continue  # p does not lie over a triangle: splitting one would fold
+        i = int(cand[k])
+        ta, tb, tc = (int(v) for v in triangles[i])
         alive[i] = False
-        for t in ((a, b, p), (b, c, p), (c, a, p)):
-            tris.append(t)
-            alive.append(True)
-            for v in t:
-                at.setdefault(v, []).append(len(tris) - 1)
-        inserted += 1
-    keep = np.array(alive)
-    return np.array(tris, np.int64)[keep], inserted
+        extra.append([(ta, tb, p), (tb, tc, p), (tc, ta, p)])
+    if not extra:
+        return triangles, 0
+    return np.vstack([triangles[alive], np.array(extra, np.int64).reshape(-1, 3)]), len(extra)
 
 
 def _on_real_boundary(fc: FanCloud, loop) -> bool:
@@ -547,28 +525,9 @@ def _delaunay_fill(fc: FanCloud, loop, pts, edges, n):
     for x, y in half:
         if (y, x) not in on_loop and (x, y) not in on_loop and (y, x) not in half:
             return None  # an inner edge with one triangle: not a disk
-        if (y, x) not in on_loop and min(x, y) * n + max(x, y) in edges:
+        if (y, x) not in on_loop and _has_edge(edges, x, y, n):
             return None  # an inner edge that exists elsewhere: non-manifold
     return [tuple(int(x) for x in t) for t in tris]
-
-
-def _edge_set(triangles, n) -> set:
-    a = triangles.ravel()
-    b = np.roll(triangles, -1, axis=1).ravel()
-    return set((np.minimum(a, b) * n + np.maximum(a, b)).tolist())
-
-
-def _add_edges(edges: set, tris, n) -> None:
-    for t in tris:
-        for j in range(3):
-            u, v = t[j], t[(j + 1) % 3]
-            edges.add(min(u, v) * n + max(u, v))
-
-
-def _candidate_counts(tri, count, n) -> dict:
-    key = np.sort(tri, axis=1)
-    packed = (key[:, 0] * n + key[:, 1]) * n + key[:, 2]
-    return dict(zip(packed.tolist(), count.tolist(), strict=True))
 
 
 def _star(fc: FanCloud, loop, p, edges, n):
@@ -588,74 +547,9 @@ def _star(fc: FanCloud, loop, p, edges, n):
     m = len(loop)
     for j in range(m):
         a, b = int(loop[j]), int(loop[(j + 1) % m])
-        if min(p, a) * n + max(p, a) in edges:
+        if _has_edge(edges, p, a, n):
             return None
         tris.append((p, b, a))
     return tris
 
 
-def _clip_ears(fc: FanCloud, loop, edges, cand, n):
-    """Triangulate a loop by clipping the best ear first; None if it cannot.
-
-    The filling runs counter-clockwise around the normals (against the
-    mesh's boundary half-edges). An ear (a, b, c) is convex in b's tangent
-    plane, holds no other loop point there, and its new edge exists nowhere
-    else in the mesh; the best is a fan triangle (most fans), then the one
-    with the largest smallest angle. Judging every ear in its own tangent
-    plane lets holes across sharp edges close too.
-    """
-    poly = [int(x) for x in loop[::-1]]
-    pts = fc.points
-    basis = {}
-    tris = []
-    while len(poly) > 3:
-        best = None
-        m = len(poly)
-        for j in range(m):
-            a, b, c = poly[j - 1], poly[j], poly[(j + 1) % m]
-            if min(a, c) * n + max(a, c) in edges:
-                continue  # the new edge a-c exists elsewhere: non-manifold
-            if b not in basis:
-                basis[b] = _tangent_basis(fc.normals[b])
-            u, v = basis[b]
-            pa, pb, pc = (_flat(pts[q] - pts[b], u, v) for q in (a, b, c))
-            if _cross2(pb - pa, pc - pb) <= 0:
-                continue  # reflex (or flat) corner
-            if any(_in_triangle(_flat(pts[q] - pts[b], u, v), pa, pb, pc)
-                   for q in poly if q not in (a, b, c)):
-                continue
-            key = tuple(sorted((a, b, c)))
-            packed = (key[0] * n + key[1]) * n + key[2]
-            score = (cand.get(packed, 0), _tri_min_angle(pts, (a, b, c)))
-            if best is None or score > best[0]:
-                best = (score, j, (a, b, c))
-        if best is None:
-            return None
-        _, j, t = best
-        tris.append(t)
-        edges.add(min(t[0], t[2]) * n + max(t[0], t[2]))
-        del poly[j]
-    a, b, c = poly
-    face = np.cross(pts[b] - pts[a], pts[c] - pts[a])
-    if face @ (fc.normals[a] + fc.normals[b] + fc.normals[c]) <= 0:
-        return None
-    tris.append((a, b, c))
-    return tris
-
-
-def _flat(d, u, v):
-    """Coordinates of the vector d in the plane spanned by u and v."""
-    return np.array([d @ u, d @ v])
-
-
-def _cross2(p, q) -> float:
-    return float(p[0] * q[1] - p[1] * q[0])
-
-
-def _in_triangle(x, a, b, c) -> bool:
-    """x inside or on the counter-clockwise triangle a b c (2D)."""
-    return _cross2(b - a, x - a) >= 0 and _cross2(c - b, x - b) >= 0 and _cross2(a - c, x - c) >= 0
-
-
-def _tri_min_angle(pts, t) -> float:
-    return float(_min_angle(pts, np.array([t], np.int64))[0])
