@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from ._fan_kernels import _atan2_2pi
+
 
 @njit(cache=True)
 def _find_sorted(keys, x):
@@ -201,68 +203,90 @@ def _heap_pop(hk, hv, size):
 
 
 @njit(cache=True)
-def _angle_at(points, normals, v, w):
-    """Angle of w around v in v's tangent plane."""
-    nx, ny, nz = normals[v, 0], normals[v, 1], normals[v, 2]
-    if abs(nx) < 0.9:
-        ux, uy, uz = 0.0, nz, -ny
-    else:
-        ux, uy, uz = -nz, 0.0, nx
-    s = np.sqrt(ux * ux + uy * uy + uz * uz)
-    ux /= s
-    uy /= s
-    uz /= s
-    vx = ny * uz - nz * uy
-    vy = nz * ux - nx * uz
-    vz = nx * uy - ny * ux
-    dx = points[w, 0] - points[v, 0]
-    dy = points[w, 1] - points[v, 1]
-    dz = points[w, 2] - points[v, 2]
-    return np.arctan2(dx * vx + dy * vy + dz * vz, dx * ux + dy * uy + dz * uz)
+def tangent_frames(normals):
+    """Per point a unit tangent pair (u, v) with (u, v, n) right-handed: (n, 6)."""
+    n = normals.shape[0]
+    out = np.empty((n, 6))
+    for i in range(n):
+        nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
+        if abs(nx) < 0.9:
+            ux, uy, uz = 0.0, nz, -ny
+        else:
+            ux, uy, uz = -nz, 0.0, nx
+        s = np.sqrt(ux * ux + uy * uy + uz * uz)
+        ux /= s
+        uy /= s
+        uz /= s
+        out[i, 0] = ux
+        out[i, 1] = uy
+        out[i, 2] = uz
+        out[i, 3] = ny * uz - nz * uy
+        out[i, 4] = nz * ux - nx * uz
+        out[i, 5] = nx * uy - ny * ux
+    return out
 
 
 @njit(cache=True)
-def _in_gap(points, normals, v, a, b, v_edge_off, v_edges, edge_uv, edge_used, edge_fwd):
+def _angle_at(points, frames, v, w):
+    """Angle of w around v in v's tangent plane, in [0, 2 pi) (the fast polynomial atan2)."""
+    dx = points[w, 0] - points[v, 0]
+    dy = points[w, 1] - points[v, 1]
+    dz = points[w, 2] - points[v, 2]
+    return _atan2_2pi(dx * frames[v, 3] + dy * frames[v, 4] + dz * frames[v, 5],
+                      dx * frames[v, 0] + dy * frames[v, 1] + dz * frames[v, 2])
+
+
+@njit(cache=True)
+def _in_gap(points, frames, v, a, b, v_edge_off, v_edges, edge_uv, edge_used, edge_fwd, wi, wa):
     """Whether the corner (v, a, b) lies in a gap of the triangles around v.
 
     Seen along v's normal, a gap runs counter-clockwise from a boundary edge
     entering v to the next boundary edge leaving it. The corner, from a to
     b counter-clockwise, must fit in one (touching its ends is fine).
+    ``wi`` (2, 8) int and ``wa`` (2, 8) float are scratch.
     """
     two_pi = 2.0 * np.pi
+    w_in = wi[0]
+    w_out = wi[1]
+    a_in = wa[0]
+    a_out = wa[1]
     n_in = 0
+    n_out = 0
     for i in range(v_edge_off[v], v_edge_off[v + 1]):
         e = v_edges[i]
-        if edge_used[e] == 1 and (edge_uv[e, 0] == v) != (edge_fwd[e] == 1):
-            n_in += 1
-    if n_in == 0:
-        return True  # no gap: the edge checks decide
-    ang_a = _angle_at(points, normals, v, a)
-    ang_b = _angle_at(points, normals, v, b)
-    for i in range(v_edge_off[v], v_edge_off[v + 1]):
-        e = v_edges[i]
-        if edge_used[e] != 1 or (edge_uv[e, 0] == v) == (edge_fwd[e] == 1):
+        if edge_used[e] != 1:
             continue
-        w_in = edge_uv[e, 1] if edge_uv[e, 0] == v else edge_uv[e, 0]
-        base = _angle_at(points, normals, v, w_in)
+        w = edge_uv[e, 1] if edge_uv[e, 0] == v else edge_uv[e, 0]
+        if (edge_uv[e, 0] == v) == (edge_fwd[e] == 1):  # the mesh runs v -> w: leaving
+            if n_out == 8:
+                return True  # a crowded vertex: leave it to the edge checks
+            w_out[n_out] = w
+            a_out[n_out] = _angle_at(points, frames, v, w)
+            n_out += 1
+        else:
+            if n_in == 8:
+                return True
+            w_in[n_in] = w
+            a_in[n_in] = _angle_at(points, frames, v, w)
+            n_in += 1
+    if n_in == 0 or n_out == 0:
+        return True  # no gap: the edge checks decide
+    ang_a = _angle_at(points, frames, v, a)
+    ang_b = _angle_at(points, frames, v, b)
+    for k in range(n_in):
+        base = a_in[k]
         # the gap ends at the first leaving boundary edge counter-clockwise
         dout = two_pi
-        w_out = -1
-        for k in range(v_edge_off[v], v_edge_off[v + 1]):
-            f = v_edges[k]
-            if edge_used[f] != 1 or (edge_uv[f, 0] == v) != (edge_fwd[f] == 1):
-                continue
-            w = edge_uv[f, 1] if edge_uv[f, 0] == v else edge_uv[f, 0]
-            d = (_angle_at(points, normals, v, w) - base) % two_pi
-            if w == w_in:
-                d = two_pi
+        end = -1
+        for q in range(n_out):
+            d = two_pi if w_out[q] == w_in[k] else (a_out[q] - base) % two_pi
             if d <= dout:
                 dout = d
-                w_out = w
-        if a == w_in and b == w_out:
+                end = w_out[q]
+        if a == w_in[k] and b == end:
             return True  # it closes the gap
-        da = 0.0 if a == w_in else (ang_a - base) % two_pi
-        db = dout if b == w_out else (ang_b - base) % two_pi
+        da = 0.0 if a == w_in[k] else (ang_a - base) % two_pi
+        db = dout if b == end else (ang_b - base) % two_pi
         if da < db <= dout:
             return True
     return False
@@ -270,7 +294,7 @@ def _in_gap(points, normals, v, a, b, v_edge_off, v_edges, edge_uv, edge_used, e
 
 @njit(cache=True)
 def _try_add(t, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, pinch, flip, points,
-             normals, v_edge_off, v_edges):
+             frames, v_edge_off, v_edges, wi, wa):
     """Whether triangle t can join the mesh, and with which orientation.
 
     ``tri[t]`` is its preferred orientation; ``edge_fwd[e]`` is 1 when the
@@ -314,9 +338,9 @@ def _try_add(t, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, pin
             if not (pinch and want != 0 and v_bnd[v] > 0):
                 return 0
         # the corner at v must lie in the gap of v's triangles (no overlap)
-        if v_bnd[v] > 0 and not _in_gap(points, normals, v, tri[t, (j + 1) % 3],
+        if v_bnd[v] > 0 and not _in_gap(points, frames, v, tri[t, (j + 1) % 3],
                                         tri[t, (j + 2) % 3], v_edge_off, v_edges, edge_uv,
-                                        edge_used, edge_fwd):
+                                        edge_used, edge_fwd, wi, wa):
             return 0
     if want == 0:
         want = 1
@@ -368,10 +392,14 @@ def grow_manifold(tri, alive, priority, tri_edge, edge_uv, edge_off, edge_tri, n
     accepted = np.zeros(m, np.bool_)
     dead = ~alive.copy()
     out_tri = tri.copy()
-    cap = 16 * m + 16
+    cap = m + 16  # a candidate is in the heap at most once
     hk = np.empty(cap, np.float64)
     hv = np.empty(cap, np.int64)
     size = 0
+    frames = tangent_frames(normals)
+    wi = np.empty((2, 8), np.int64)  # scratch of _in_gap
+    wa = np.empty((2, 8))
+    queued = np.zeros(m, np.bool_)  # in the heap now: no second copy
     seeds = np.argsort(priority, kind="mergesort")
     s_next = 0
     while True:
@@ -383,16 +411,18 @@ def grow_manifold(tri, alive, priority, tri_edge, edge_uv, edge_off, edge_tri, n
                 if dead[t] or accepted[t]:
                     continue
                 if v_count[tri[t, 0]] == 0 and v_count[tri[t, 1]] == 0 \
-                        and v_count[tri[t, 2]] == 0:
+                        and v_count[tri[t, 2]] == 0 and not queued[t]:
                     size = _heap_push(hk, hv, size, priority[t], t)
+                    queued[t] = True
                     break
             if size == 0:
                 break
         t, size = _heap_pop(hk, hv, size)
+        queued[t] = False
         if dead[t] or accepted[t]:
             continue
         how = _try_add(t, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, pinch,
-                       False, points, normals, v_edge_off, v_edges)
+                       False, points, frames, v_edge_off, v_edges, wi, wa)
         if how == 0:
             # refused for good when an edge is full; else it may fit later
             for j in range(3):
@@ -406,8 +436,9 @@ def grow_manifold(tri, alive, priority, tri_edge, edge_uv, edge_off, edge_tri, n
             e = tri_edge[t, j]
             for i in range(edge_off[e], edge_off[e + 1]):
                 c = edge_tri[i]
-                if c != t and not dead[c] and not accepted[c] and size < cap:
+                if c != t and not dead[c] and not accepted[c] and not queued[c] and size < cap:
                     size = _heap_push(hk, hv, size, priority[c], c)
+                    queued[c] = True
     return accepted, out_tri
 
 
