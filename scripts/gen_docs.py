@@ -1,12 +1,18 @@
 """Regenerate the parts of the docs derived from the parameter tables.
 
-* ``docs/api.md``: the parameter table between the ``FAN_PARAMS`` marker
-  comments, from :func:`fancloud_vtk.params.markdown_table`;
-* ``fancloud_vtk/accessor.pyi``: the ``fans`` signature between its markers,
-  from the same table.
+* ``docs/api.md``: the parameter tables between the ``FAN_PARAMS`` and the
+  ``MESH_PARAMS`` marker comments, from
+  :func:`fancloud_vtk.params.markdown_table`;
+* ``fancloud_vtk/accessor.pyi``: the signatures of the accessor verbs
+  ``fans`` (``FAN_PARAMS``) and ``mesh`` (``FAN_PARAMS + MESH_PARAMS``)
+  between their markers, from the same tables.
 
 It also checks that ``docs/api.md`` names every entry of
-``fancloud_vtk.__all__`` and ``fancloud_vtk.algorithms.__all__``.
+``fancloud_vtk.__all__``, ``fancloud_vtk.algorithms.__all__`` and
+``fancloud_vtk.core.mesh_stats.__all__`` (as ```name``), every public
+verb of the accessor (as ``fancloud.verb``), every subcommand of the
+``fancloud`` command (as ``fancloud command``) and every benchmark (as
+``fancloud bench mode``).
 
 Usage: ``python scripts/gen_docs.py`` rewrites the files; ``--check`` only
 reports (exit status 1) when they are out of date.
@@ -24,15 +30,29 @@ sys.path.insert(0, str(ROOT))
 
 import fancloud_vtk  # noqa: E402
 import fancloud_vtk.algorithms  # noqa: E402
-from fancloud_vtk.params import FAN_PARAMS, Param, markdown_table  # noqa: E402
+import fancloud_vtk.core.mesh_stats  # noqa: E402
+from fancloud_vtk.params import FAN_PARAMS, MESH_PARAMS, Param, markdown_table  # noqa: E402
 
 API_MD = ROOT / "docs" / "api.md"
 STUB = ROOT / "fancloud_vtk" / "accessor.pyi"
 
+#: Accessor verbs whose stub signature is generated: name -> (table, one-line docstring).
+VERBS = {
+    "fans": (
+        FAN_PARAMS,
+        "Build the fan cloud of the dataset's points (paper section 3); a new PolyData.",
+    ),
+    "mesh": (
+        FAN_PARAMS + MESH_PARAMS,
+        "Triangle mesh of the dataset's fan cloud or points (paper section 4); a new PolyData.",
+    ),
+}
 
-def stub_signature(table: tuple[Param, ...], name: str = "fans") -> str:
+
+def stub_signature(table: tuple[Param, ...], name: str = "fans", doc: str | None = None) -> str:
     """The accessor method's signature (keyword-only, from the table) as stub lines."""
     types = {"int": "int", "float": "float", "bool": "bool"}
+    doc = VERBS[name][1] if doc is None else doc
     lines = [f"    def {name}(", "        self,", "        *,"]
     for p in table:
         if p.kind == "choice":
@@ -45,8 +65,7 @@ def stub_signature(table: tuple[Param, ...], name: str = "fans") -> str:
     lines += [
         "        progress_bar: bool = False,",
         "    ) -> pv.PolyData:",
-        '        """Build the fan cloud of the dataset\'s points (paper section 3); '
-        'a new PolyData."""',
+        f'        """{doc}"""',
     ]
     return "\n".join(lines)
 
@@ -60,10 +79,38 @@ def replace_between(text: str, begin: str, end: str, body: str, path: Path) -> s
     return pattern.sub(lambda m: m.group(1) + body + "\n" + m.group(3), text, count=1)
 
 
+def targets() -> list[tuple[Path, str, str, str]]:
+    """Every generated block: (file, begin marker, end marker, content)."""
+    out = [
+        (API_MD, "BEGIN FAN_PARAMS", "END FAN_PARAMS", markdown_table(FAN_PARAMS)),
+        (API_MD, "BEGIN MESH_PARAMS", "END MESH_PARAMS", markdown_table(MESH_PARAMS)),
+    ]
+    for verb, (table, doc) in VERBS.items():
+        out.append((STUB, f"BEGIN GENERATED {verb}", f"END GENERATED {verb}",
+                    stub_signature(table, verb, doc)))
+    return out
+
+
+def _subcommands(parser: argparse.ArgumentParser) -> list[str]:
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return list(action.choices)
+
+
 def missing_names(api_text: str) -> list[str]:
-    """Public names of the package that docs/api.md does not mention (as ``name``)."""
-    names = list(fancloud_vtk.__all__) + list(fancloud_vtk.algorithms.__all__)
-    return [n for n in names if f"`{n}" not in api_text]
+    """Public names, verbs and commands that docs/api.md does not mention."""
+    from fancloud_vtk.accessor import FanCloudAccessor
+    from fancloud_vtk.bench import make_parser as bench_parser
+    from fancloud_vtk.cli import make_parser
+
+    names = (list(fancloud_vtk.__all__) + list(fancloud_vtk.algorithms.__all__)
+             + list(fancloud_vtk.core.mesh_stats.__all__))
+    missing = [n for n in names if f"`{n}" not in api_text]
+    verbs = [v for v in vars(FanCloudAccessor) if not v.startswith("_")]
+    missing += [f"fancloud.{v}" for v in verbs if f"fancloud.{v}" not in api_text]
+    commands = [f"fancloud {c}" for c in _subcommands(make_parser())]
+    commands += [f"fancloud bench {m}" for m in _subcommands(bench_parser())]
+    missing += [c for c in commands if f"`{c}" not in api_text]
+    return missing
 
 
 def main(argv=None) -> int:
@@ -71,15 +118,13 @@ def main(argv=None) -> int:
     parser.add_argument("--check", action="store_true", help="report stale files, write nothing")
     args = parser.parse_args(argv)
 
-    targets = {
-        API_MD: ("BEGIN FAN_PARAMS", "END FAN_PARAMS", markdown_table(FAN_PARAMS)),
-        STUB: ("BEGIN GENERATED fans", "END GENERATED fans", stub_signature(FAN_PARAMS)),
-    }
+    new_text: dict[Path, str] = {}
+    for path, begin, end, body in targets():
+        old = new_text.get(path) or path.read_text(encoding="utf-8")
+        new_text[path] = replace_between(old, begin, end, body, path)
     stale = []
-    for path, (begin, end, body) in targets.items():
-        old = path.read_text(encoding="utf-8")
-        new = replace_between(old, begin, end, body, path)
-        if new != old:
+    for path, new in new_text.items():
+        if new != path.read_text(encoding="utf-8"):
             stale.append(path)
             if not args.check:
                 path.write_text(new, encoding="utf-8")
