@@ -152,6 +152,13 @@ def fan_cloud_to_mesh(
         raise ValueError(f"max_hole must be an integer of at least 3 edges, got {max_hole!r}")
     timings = {}
     stats = {}
+    # Work on the points in a spatially coherent order (the fan grid's cell
+    # order): the fan cloud's own order may be random, and every stage walks
+    # rings and neighbours. Triangles are mapped back at the end.
+    t0 = time.perf_counter()
+    source = fancloud
+    spatial, fancloud = _spatial_order(fancloud)
+    timings["reorder"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     if rings == "delaunay":
@@ -219,12 +226,33 @@ def fan_cloud_to_mesh(
     timings["checks"] = time.perf_counter() - t0
     stats["timings"] = timings
     return TriangleMesh(
-        fancloud.points.copy(),
-        np.ascontiguousarray(triangles, dtype=np.int64),
-        fancloud.normals.copy(),
-        {k: v.copy() for k, v in fancloud.point_data.items()},
+        source.points.copy(),
+        np.ascontiguousarray(spatial[triangles], dtype=np.int64),
+        source.normals.copy(),
+        {k: v.copy() for k, v in source.point_data.items()},
         stats,
     )
+
+
+def _spatial_order(fc: FanCloud):
+    """(order, the fan cloud relabelled so that point i is fc's point order[i]).
+
+    The order is the fan construction's grid order (cells in Morton order).
+    Only the geometry and the rings are carried over (no point data).
+    """
+    from .fans import _Grid
+
+    order = _Grid(fc.points).order
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order), dtype=order.dtype)
+    sizes = np.diff(fc.offsets)[order]
+    offsets = np.zeros(len(order) + 1, np.int64)
+    np.cumsum(sizes, out=offsets[1:])
+    starts = np.repeat(fc.offsets[:-1][order], sizes)
+    within = np.arange(offsets[-1], dtype=np.int64) - np.repeat(offsets[:-1], sizes)
+    ring = rank[fc.ring[starts + within]]
+    return order, FanCloud(fc.points[order], offsets, ring, fc.normals[order], fc.open[order],
+                           fc.rotated[order])
 
 
 # -- stages --------------------------------------------------------------------
@@ -307,7 +335,7 @@ def _vertex_edges(edge_uv: np.ndarray, n: int):
 
 # -- holes -------------------------------------------------------------------------
 
-def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds=3):
+def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds=4):
     """Triangulate the small boundary loops that are holes, not the real boundary.
 
     A loop with a single unused point inside gets a star around it; with
@@ -327,9 +355,10 @@ def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds
     order = np.argsort(cand_keys, kind="stable")
     cand_keys, cand_counts = cand_keys[order], cand_count[order]
     closed = inserted = 0
+    widened = np.zeros(n, bool)  # around holes that were widened: any size goes
     for _ in range(rounds):
         loops = [lp for lp in boundary_loops(triangles)
-                 if len(lp) == 3 or (len(lp) <= max_hole
+                 if len(lp) == 3 or ((len(lp) <= max_hole or widened[lp].any())
                                      and not (fc.open[lp].any() and _on_real_boundary(fc, lp)))]
         if not loops:
             break
@@ -383,6 +412,7 @@ def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds
         around = np.zeros(n, bool)
         around[np.concatenate(failed)] = True
         keep = ~around[triangles].any(axis=1)
+        widened[triangles[~keep].ravel()] = True
         triangles = triangles[keep]
         keep = np.ones(len(triangles), bool)
         MK.split_pinched(triangles, keep, n)
