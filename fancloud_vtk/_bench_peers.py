@@ -339,7 +339,7 @@ def surface_distance(vertices, triangles, distance, n_samples: int, seed: int = 
         return {"mean": None, "max": None, "samples": 0}
     a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
     cum = np.cumsum(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1))
-    dmax = float(distance(v[np.unique(t)]).max())
+    dmax = float(distance(v[np.flatnonzero(np.bincount(np.ravel(t), minlength=len(v)))]).max())
     total, dsum, done = cum[-1], 0.0, 0
     rng = np.random.default_rng(seed)
     while total > 0 and done < n_samples:

@@ -424,7 +424,18 @@ def _edge_keys(triangles, n) -> np.ndarray:
     """Sorted packed undirected edges ``min * n + max`` of the triangles."""
     a = triangles.ravel()
     b = np.roll(triangles, -1, axis=1).ravel()
-    return np.unique(np.minimum(a, b) * n + np.maximum(a, b))
+    return _sorted_unique(np.minimum(a, b) * n + np.maximum(a, b))
+
+
+def _sorted_unique(keys: np.ndarray) -> np.ndarray:
+    """np.unique by sorting (numpy 2's hash-based unique is several times slower here)."""
+    keys = np.sort(keys)
+    if len(keys) == 0:
+        return keys
+    keep = np.empty(len(keys), bool)
+    keep[0] = True
+    np.not_equal(keys[1:], keys[:-1], out=keep[1:])
+    return keys[keep]
 
 
 def _has_edge(edge_keys, u, v, n) -> bool:
