@@ -125,7 +125,8 @@ def cmd_mesh(args) -> int:
     return 0
 
 
-def _print_mesh_summary(mesh, elapsed, path=None) -> None:
+def _print_mesh_summary(mesh, elapsed, path=None, extra=()) -> None:
+    """The stage counts (and per point) and the checks of a mesh; ``extra``: more rows."""
     s = mesh.stats
     n = max(len(mesh.points), 1)
     rows = [("points", f"{len(mesh.points):,}")]
@@ -140,6 +141,7 @@ def _print_mesh_summary(mesh, elapsed, path=None) -> None:
     rows.append(("time", f"{elapsed:.2f} s"))
     if path:
         rows.append(("written", str(path)))
+    rows.extend(extra)
     _print_rows(rows)
 
 

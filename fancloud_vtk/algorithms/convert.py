@@ -23,11 +23,11 @@ from contextlib import contextmanager
 
 import numpy as np
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-from vtkmodules.vtkCommonCore import vtkCommand, vtkPoints
+from vtkmodules.vtkCommonCore import VTK_FLOAT, VTK_UNSIGNED_CHAR, vtkCommand, vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
 
 from fancloud_vtk.core.mesh import TriangleMesh
-from fancloud_vtk.core.model import FanCloud
+from fancloud_vtk.core.model import COLOR_NAMES, FanCloud
 
 NORMALS = "Normals"
 FAN_OPEN = "fan_open"
@@ -295,6 +295,9 @@ MESH_FORMATS = (".vtp", ".ply", ".obj", ".stl", ".vtk")
 def write_mesh(polydata, path) -> None:
     """Write a triangle mesh by extension: .vtp, .ply, .obj, .stl or .vtk (legacy).
 
+    A ``.ply`` keeps the normals (as float32) and a uint8 RGB(A) colour array
+    (the first of ``RGB``, ``RGBA``, ``Colors``, ...) as red/green/blue(/alpha).
+
     Raises ``ValueError`` for another extension and ``OSError`` naming the
     path and the reason when writing fails.
     """
@@ -321,9 +324,36 @@ def write_mesh(polydata, path) -> None:
     writer.SetFileName(path)
     if ext in (".ply", ".stl", ".vtk"):
         writer.SetFileTypeToBinary()
+    if ext == ".ply":
+        polydata = _ply_ready(polydata, writer)
     writer.SetInputData(polydata)
     with _quiet_vtk() as capture:
         ok = writer.Write()
     messages = _first_errors(errors, capture)
     if ok != 1 or messages:
         raise OSError(f"could not write {path}: {'; '.join(messages) or 'VTK error'}")
+
+
+def _ply_ready(polydata, writer):
+    """What ``vtkPLYWriter`` needs to keep the normals and the colours.
+
+    It writes float32 normals only (it drops float64 ones with a warning),
+    and colours only when told the array's name: a shallow copy with float32
+    ``Normals``; the first uint8 RGB(A) array of ``COLOR_NAMES`` is set as
+    the colours (with alpha for four components).
+    """
+    out = vtkPolyData()
+    out.ShallowCopy(polydata)
+    pd = out.GetPointData()
+    normals = pd.GetNormals()
+    if normals is not None and normals.GetDataType() != VTK_FLOAT:
+        pd.SetNormals(_to_vtk_array(vtk_to_numpy(normals).astype(np.float32),
+                                    normals.GetName() or NORMALS))
+    for name in COLOR_NAMES:
+        arr = pd.GetArray(name)
+        if (arr is not None and arr.GetDataType() == VTK_UNSIGNED_CHAR
+                and arr.GetNumberOfComponents() in (3, 4)):
+            writer.SetArrayName(name)
+            writer.SetEnableAlpha(arr.GetNumberOfComponents() == 4)
+            break
+    return out

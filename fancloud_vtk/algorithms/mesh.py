@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from fancloud_vtk.core.fans import build_fans
+from fancloud_vtk.core.fans import Cancelled, build_fans
 from fancloud_vtk.core.mesh import fan_cloud_to_mesh
 from fancloud_vtk.params import FAN_PARAMS, MESH_PARAMS
 
@@ -52,7 +52,8 @@ class FanCloudMeshFilter(FanCloudAlgorithm):
             fc = build_fans(points_of(dataset), normals=normals, point_data=arrays,
                             progress=lambda f, m: self._progress(0.5 * f, m),
                             **{p.name: values[p.name] for p in FAN_PARAMS})
-        self._progress(0.5, "mesh")
+        if self._progress(0.5, "mesh"):  # the mesh stage cannot stop midway: ask before
+            raise Cancelled("meshing was cancelled")
         mesh = fan_cloud_to_mesh(fc, **mesh_values)
         self._progress(1.0, "done")
         return mesh_to_vtk(mesh)
