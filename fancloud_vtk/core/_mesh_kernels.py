@@ -891,3 +891,97 @@ def clip_ears(points, normals, loop_off, loop_verts, edge_keys, cand_keys, cand_
                 out[row, 1] = b
                 out[row, 2] = c
         ok[i] = good
+
+
+# -- distinct triangles -----------------------------------------------------
+
+@njit(cache=True)
+def _fan_has(offsets, ring, is_open, c, x, y):
+    """+1 if c's fan has the triangle (c, x, y), -1 if it has (c, y, x), else 0."""
+    r0 = offsets[c]
+    m = offsets[c + 1] - r0
+    last = m if not is_open[c] else m - 1
+    for j in range(max(last, 0)):
+        u = ring[r0 + j]
+        w = ring[r0 + (j + 1) % m]
+        if u == x and w == y:
+            return 1
+        if u == y and w == x:
+            return -1
+    return 0
+
+
+@njit(cache=True)
+def _fan_triangle(offsets, ring, is_open, p, j):
+    """(a, b, count, vote, owned) of the j-th triangle (p, a, b) of p's fan.
+
+    ``owned``: p is the smallest point whose fan has the triangle (so it
+    is emitted once, from there); ``vote`` sums +1 for every fan that runs
+    it as p's fan does, -1 for the opposite.
+    """
+    r0 = offsets[p]
+    m = offsets[p + 1] - r0
+    a = ring[r0 + j]
+    b = ring[r0 + (j + 1) % m]
+    count = 1
+    vote = 1
+    owned = True
+    ha = _fan_has(offsets, ring, is_open, a, b, p)  # (a, b, p) is (p, a, b) turned
+    if ha != 0:
+        count += 1
+        vote += ha
+        if a < p:
+            owned = False
+    hb = _fan_has(offsets, ring, is_open, b, p, a)  # (b, p, a) is (p, a, b) turned
+    if hb != 0:
+        count += 1
+        vote += hb
+        if b < p:
+            owned = False
+    return a, b, count, vote, owned
+
+
+@njit(cache=True, parallel=True)
+def distinct_triangles(offsets, ring, is_open):
+    """Distinct fan triangles, oriented by most of their fans, and their counts.
+
+    Every triangle is emitted once, by the smallest point whose fan has it,
+    in fan order (the order of first appearance, fan by fan); a tie in the
+    orientation vote keeps that fan's orientation. Returns (tri, count,
+    n_fan_triangles).
+    """
+    n = offsets.shape[0] - 1
+    per = np.zeros(n + 1, np.int64)
+    n_fan = np.zeros(n, np.int64)
+    for p in prange(n):
+        m = offsets[p + 1] - offsets[p]
+        k = m if not is_open[p] else m - 1
+        if m < 2:
+            k = 0
+        n_fan[p] = max(k, 0)
+        c = 0
+        for j in range(max(k, 0)):
+            _, _, _, _, owned = _fan_triangle(offsets, ring, is_open, p, j)
+            if owned:
+                c += 1
+        per[p + 1] = c
+    for p in range(n):
+        per[p + 1] += per[p]
+    tri = np.empty((per[n], 3), np.int64)
+    count = np.empty(per[n], np.int64)
+    for p in prange(n):
+        t = per[p]
+        for j in range(n_fan[p]):
+            a, b, cnt, vote, owned = _fan_triangle(offsets, ring, is_open, p, j)
+            if not owned:
+                continue
+            tri[t, 0] = p
+            if vote >= 0:
+                tri[t, 1] = a
+                tri[t, 2] = b
+            else:
+                tri[t, 1] = b
+                tri[t, 2] = a
+            count[t] = cnt
+            t += 1
+    return tri, count, n_fan.sum()

@@ -172,9 +172,8 @@ def fan_cloud_to_mesh(
         timings["delaunay_rings"] = time.perf_counter() - t0
     else:
         fans = fancloud
-    fan_tri = fans.fan_triangles()
-    stats["fan_triangles"] = len(fan_tri)
-    tri, count = _distinct(fan_tri, n)
+    tri, count, n_fan = MK.distinct_triangles(fans.offsets, fans.ring, fans.open)
+    stats["fan_triangles"] = int(n_fan)
     stats["distinct"] = len(tri)
     timings["distinct"] = time.perf_counter() - t0
 
@@ -256,35 +255,6 @@ def _spatial_order(fc: FanCloud):
 
 
 # -- stages --------------------------------------------------------------------
-
-def _distinct(fan_tri: np.ndarray, n: int):
-    """Distinct triangles, oriented by the majority of their fans, and their counts."""
-    if len(fan_tri) == 0:
-        return np.empty((0, 3), np.int64), np.empty(0, np.int64)
-    key = np.sort(fan_tri, axis=1)
-    # +1 where the fan's order is a rotation of the sorted order
-    lo = np.argmin(fan_tri, axis=1)
-    rows = np.arange(len(fan_tri))
-    after = fan_tri[rows, (lo + 1) % 3]
-    before = fan_tri[rows, (lo + 2) % 3]
-    sign = np.where(after < before, 1, -1)
-    if n < 2_000_000:
-        packed = (key[:, 0] * n + key[:, 1]) * n + key[:, 2]
-        _, first, inverse, counts = np.unique(packed, return_index=True, return_inverse=True,
-                                              return_counts=True)
-    else:
-        _, first, inverse, counts = np.unique(key, axis=0, return_index=True,
-                                              return_inverse=True, return_counts=True)
-    inverse = inverse.reshape(-1)
-    vote = np.bincount(inverse, weights=sign, minlength=len(first))
-    vote = np.where(vote == 0, sign[first], vote)
-    tri = key[first].copy()
-    flip = vote < 0
-    tri[flip] = tri[flip][:, [0, 2, 1]]
-    # deterministic order: by first occurrence (fan by fan)
-    order = np.argsort(first, kind="stable")
-    return np.ascontiguousarray(tri[order]), counts[order].astype(np.int64)
-
 
 def _min_angle(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
     """Smallest angle of every triangle, in degrees (0 for degenerate ones)."""
