@@ -985,3 +985,108 @@ def distinct_triangles(offsets, ring, is_open):
             count[t] = cnt
             t += 1
     return tri, count, n_fan.sum()
+
+
+@njit(cache=True)
+def _local_neighbours(tri, vt_off, vt, u, buf):
+    """Sorted distinct vertices w > u that share a triangle with u, into buf; their number."""
+    m = 0
+    for i in range(vt_off[u], vt_off[u + 1]):
+        t = vt[i]
+        for k in range(3):
+            w = tri[t, k]
+            if w <= u:
+                continue
+            j = m - 1
+            dup = False
+            while j >= 0 and buf[j] >= w:  # insertion keeps buf sorted
+                if buf[j] == w:
+                    dup = True
+                    break
+                j -= 1
+            if dup:
+                continue
+            if m == buf.shape[0]:
+                return -1
+            for q in range(m, j + 1, -1):
+                buf[q] = buf[q - 1]
+            buf[j + 1] = w
+            m += 1
+    return m
+
+
+@njit(cache=True, parallel=True)
+def build_edges(tri, n):
+    """Undirected edges of triangles: (edge_uv, tri_edge, edge_off, edge_tri).
+
+    Edges are numbered in increasing (u, v), u < v; ``tri_edge[t, j]`` is
+    the edge between ``tri[t, j]`` and ``tri[t, (j + 1) % 3]``;
+    ``edge_tri[edge_off[e]:edge_off[e + 1]]`` the triangles on edge ``e`` in
+    increasing order.
+    """
+    m = tri.shape[0]
+    vt_off = np.zeros(n + 1, np.int64)
+    for t in range(m):
+        for k in range(3):
+            vt_off[tri[t, k] + 1] += 1
+    for v in range(n):
+        vt_off[v + 1] += vt_off[v]
+    fill = vt_off[:-1].copy()
+    vt = np.empty(3 * m, np.int64)
+    for t in range(m):
+        for k in range(3):
+            v = tri[t, k]
+            vt[fill[v]] = t
+            fill[v] += 1
+    per = np.zeros(n + 1, np.int64)
+    n_chunks = min(max(n, 1), 256)
+    for ch in prange(n_chunks):
+        buf = np.empty(256, np.int64)
+        for u in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
+            per[u + 1] = _local_neighbours(tri, vt_off, vt, u, buf)
+    for u in range(n):
+        if per[u + 1] < 0:
+            raise ValueError("a point with more than 256 triangle neighbours")
+        per[u + 1] += per[u]
+    n_edges = per[n]
+    edge_uv = np.empty((n_edges, 2), np.int64)
+    tri_edge = np.empty((m, 3), np.int64)
+    for ch in prange(n_chunks):
+        buf = np.empty(256, np.int64)
+        for u in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
+            k = _local_neighbours(tri, vt_off, vt, u, buf)
+            base = per[u]
+            for q in range(k):
+                edge_uv[base + q, 0] = u
+                edge_uv[base + q, 1] = buf[q]
+            for i in range(vt_off[u], vt_off[u + 1]):
+                t = vt[i]
+                for j in range(3):
+                    a = tri[t, j]
+                    b = tri[t, (j + 1) % 3]
+                    if min(a, b) != u:
+                        continue
+                    w = max(a, b)
+                    lo = 0
+                    hi = k - 1
+                    while lo < hi:
+                        mid = (lo + hi) // 2
+                        if buf[mid] < w:
+                            lo = mid + 1
+                        else:
+                            hi = mid
+                    tri_edge[t, j] = base + lo
+    edge_off = np.zeros(n_edges + 1, np.int64)
+    for t in range(m):
+        for j in range(3):
+            edge_off[tri_edge[t, j] + 1] += 1
+    for e in range(n_edges):
+        edge_off[e + 1] += edge_off[e]
+    fill_e = edge_off[:-1].copy()
+    edge_tri = np.empty(3 * m, np.int64)
+    for t in range(m):
+        for j in range(3):
+            e = tri_edge[t, j]
+            edge_tri[fill_e[e]] = t
+            fill_e[e] += 1
+    return edge_uv, tri_edge, edge_off, edge_tri

@@ -180,7 +180,7 @@ def fan_cloud_to_mesh(
     t0 = time.perf_counter()
     key_sorted = np.sort(tri, axis=1)
     quality = _min_angle(fancloud.points, tri) / 60.0
-    edge_uv, tri_edge, edge_off, edge_tri = _edges(tri, n)
+    edge_uv, tri_edge, edge_off, edge_tri = MK.build_edges(tri, n)
     tri_keys = (key_sorted[:, 0] * n + key_sorted[:, 1]) * n + key_sorted[:, 2]
     order = np.argsort(tri_keys, kind="stable")
     quads = MK.find_quads(fancloud.points, fancloud.normals, tri, tri_keys[order], order,
@@ -269,29 +269,6 @@ def _min_angle(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
             np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), 1e-300)
         out = np.minimum(out, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
     return out
-
-
-def _edges(tri: np.ndarray, n: int):
-    """Undirected edges: (edge_uv, tri_edge, edge_off, edge_tri).
-
-    ``tri_edge[t, j]`` is the edge between ``tri[t, j]`` and
-    ``tri[t, (j + 1) % 3]``; ``edge_tri[edge_off[e]:edge_off[e + 1]]`` the
-    triangles on edge ``e``.
-    """
-    a = tri
-    b = np.roll(tri, -1, axis=1)
-    u = np.minimum(a, b).ravel()
-    v = np.maximum(a, b).ravel()
-    packed = u * n + v
-    uniq, inverse = np.unique(packed, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    edge_uv = np.stack([uniq // n, uniq % n], axis=1).astype(np.int64)
-    tri_edge = inverse.reshape(-1, 3).astype(np.int64)
-    order = np.argsort(inverse, kind="stable")
-    edge_tri = (order // 3).astype(np.int64)
-    edge_off = np.zeros(len(uniq) + 1, np.int64)
-    np.cumsum(np.bincount(inverse, minlength=len(uniq)), out=edge_off[1:])
-    return edge_uv, tri_edge, edge_off, edge_tri
 
 
 def _vertex_edges(edge_uv: np.ndarray, n: int):
