@@ -338,6 +338,8 @@ def _try_add(t, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, pin
             if not (pinch and want != 0 and v_bnd[v] > 0):
                 return 0
         # the corner at v must lie in the gap of v's triangles (no overlap)
+        if v_bnd[v] == 2 and edge_used[e_in] == 1 and edge_used[e_out] == 1:
+            continue  # it fills v's one gap, between its two boundary edges
         if v_bnd[v] > 0 and not _in_gap(points, frames, v, tri[t, (j + 1) % 3],
                                         tri[t, (j + 2) % 3], v_edge_off, v_edges, edge_uv,
                                         edge_used, edge_fwd, wi, wa):
