@@ -1,5 +1,6 @@
 """Smoke tests of ``fancloud bench fans`` and ``fancloud bench mesh`` on tiny sizes."""
 
+import importlib.util
 import json
 import os
 
@@ -209,13 +210,19 @@ def test_bench_mesh_smoke(tmp_path, capsys, fake_peers):
     by_method = {row["method"]: row for row in compare}
     assert len(by_method) == 4
     ours = by_method["fancloud_vtk (this project)"]
-    assert ours["status"] == "ok" or ours["status"].startswith(
-        "missing: fan_cloud_to_mesh not available (ImportError"), ours
+    assert ours["status"] == "ok", ours
     missing = by_method[f"{fake_peers}:load_missing"]
     assert missing["status"].startswith(f"missing: {fake_peers}:load_missing not available "
                                         "(ModuleNotFoundError"), missing
     assert missing["time (s)"] == "-"
+    # MeshLib comes with the bench extra; the plain test install reports it missing
+    have_meshlib = importlib.util.find_spec("meshlib") is not None
+    if not have_meshlib:
+        row = by_method["MeshLib triangulatePointCloud"]
+        assert row["status"].startswith("missing: meshlib"), row
     for label in ("MeshLib triangulatePointCloud", "pymeshlab ball pivoting"):
+        if label.startswith("MeshLib") and not have_meshlib:
+            continue
         row = by_method[label]
         assert row["status"].startswith("ok"), row
         assert float(row["time (s)"]) > 0
@@ -229,9 +236,10 @@ def test_bench_mesh_smoke(tmp_path, capsys, fake_peers):
     assert raw["args"]["data"] == ["sphere:3000"]
     methods = raw["datasets"][0]["methods"]
     assert [m["method"] for m in methods][:3] == ["ours", "meshlib", "ball-pivoting"]
-    assert methods[1]["status"] == "ok" and methods[1]["n_triangles"] > 3000
-    assert methods[1]["distance"]["samples"] == 2 * 3000
-    assert raw["peers"]["meshlib"] is None or methods[1]["time"] > 0
+    if have_meshlib:
+        assert methods[1]["status"] == "ok" and methods[1]["n_triangles"] > 3000
+        assert methods[1]["distance"]["samples"] == 2 * 3000
+        assert raw["peers"]["meshlib"] is None or methods[1]["time"] > 0
 
 
 @pytest.mark.parametrize(("loader", "status", "message"), [

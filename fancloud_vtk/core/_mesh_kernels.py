@@ -14,26 +14,6 @@ from ._fan_kernels import _atan2_2pi
 
 
 @njit(cache=True)
-def _find_sorted(keys, x):
-    """Index of x in the sorted array keys, or -1."""
-    i = np.searchsorted(keys, x)
-    if i < keys.shape[0] and keys[i] == x:
-        return i
-    return -1
-
-
-@njit(cache=True)
-def _tri_key(a, b, c, n):
-    if a > b:
-        a, b = b, a
-    if b > c:
-        b, c = c, b
-    if a > b:
-        a, b = b, a
-    return (a * n + b) * n + c
-
-
-@njit(cache=True)
 def _opposite(points, normals, x, y, u, v):
     """Whether u and v lie on opposite sides of the line x y, seen along the normals."""
     nx = normals[x, 0] + normals[y, 0]
@@ -62,17 +42,33 @@ def _opposite(points, normals, x, y, u, v):
 
 
 @njit(cache=True)
-def find_quads(points, normals, tri, sorted_keys, key_order, edge_uv, edge_off, edge_tri, n):
+def _triangle_on(tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, u, v, x):
+    """The candidate triangle with vertices u, v, x (through the edge u-v), or -1."""
+    e = -1
+    for i in range(v_edge_off[u], v_edge_off[u + 1]):
+        f = v_edges[i]
+        if edge_uv[f, 0] + edge_uv[f, 1] - u == v:
+            e = f
+            break
+    if e < 0:
+        return -1
+    for i in range(edge_off[e], edge_off[e + 1]):
+        t = edge_tri[i]
+        if tri[t, 0] == x or tri[t, 1] == x or tri[t, 2] == x:
+            return t
+    return -1
+
+
+@njit(cache=True)
+def find_quads(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_edges):
     """Quadrilaterals covered by both diagonals' triangulations.
 
     For every edge (x, y) with two triangles x y u and x y v on it, the
-    triangles u v x and u v y of the other diagonal are looked up by their
-    packed vertex sets (``sorted_keys``, the packed keys in increasing order;
-    ``key_order`` the triangle of each). Returns rows ``(t_xyu, t_xyv,
-    t_uvx, t_uvy)`` with -1 for a missing triangle, for every quad where at
-    least one of the other diagonal's triangles exists, and u and v lie on
-    opposite sides of x y (a real quadrilateral, not two triangles folded
-    onto each other).
+    triangles u v x and u v y of the other diagonal are looked up through
+    the edge u-v. Returns rows ``(t_xyu, t_xyv, t_uvx, t_uvy)`` with -1 for a
+    missing triangle, for every quad where at least one of the other
+    diagonal's triangles exists, and u and v lie on opposite sides of x y
+    (a real quadrilateral, not two triangles folded onto each other).
     """
     n_edges = edge_uv.shape[0]
     cap = 1024
@@ -89,12 +85,8 @@ def find_quads(points, normals, tri, sorted_keys, key_order, edge_uv, edge_off, 
                 v = tri[t2, 0] + tri[t2, 1] + tri[t2, 2] - x - y
                 if u == v or not _opposite(points, normals, x, y, u, v):
                     continue
-                t3 = _find_sorted(sorted_keys, _tri_key(u, v, x, n))
-                t4 = _find_sorted(sorted_keys, _tri_key(u, v, y, n))
-                if t3 >= 0:
-                    t3 = key_order[t3]
-                if t4 >= 0:
-                    t4 = key_order[t4]
+                t3 = _triangle_on(tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, u, v, x)
+                t4 = _triangle_on(tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, u, v, y)
                 if t3 < 0 and t4 < 0:
                     continue
                 if m == cap:
@@ -108,6 +100,55 @@ def find_quads(points, normals, tri, sorted_keys, key_order, edge_uv, edge_off, 
                 out[m, 3] = t4
                 m += 1
     return out[:m]
+
+
+@njit(cache=True)
+def vertex_edges(edge_uv, n):
+    """Edges at every vertex (CSR), each vertex's in increasing edge number."""
+    off = np.zeros(n + 1, np.int64)
+    for e in range(edge_uv.shape[0]):
+        off[edge_uv[e, 0] + 1] += 1
+        off[edge_uv[e, 1] + 1] += 1
+    for v in range(n):
+        off[v + 1] += off[v]
+    fill = off[:-1].copy()
+    out = np.empty(off[n], np.int64)
+    for e in range(edge_uv.shape[0]):
+        for k in range(2):
+            v = edge_uv[e, k]
+            out[fill[v]] = e
+            fill[v] += 1
+    return off, out
+
+
+@njit(cache=True)
+def vertex_triangles(tri, n):
+    """Triangles at every vertex (CSR), in increasing triangle number."""
+    off = np.zeros(n + 1, np.int64)
+    for t in range(tri.shape[0]):
+        for k in range(3):
+            off[tri[t, k] + 1] += 1
+    for v in range(n):
+        off[v + 1] += off[v]
+    fill = off[:-1].copy()
+    out = np.empty(off[n], np.int64)
+    for t in range(tri.shape[0]):
+        for k in range(3):
+            v = tri[t, k]
+            out[fill[v]] = t
+            fill[v] += 1
+    return off, out
+
+
+@njit(cache=True, parallel=True)
+def min_angles(points, tri):
+    """Smallest angle of every triangle in degrees (0 for a degenerate one)."""
+    m = tri.shape[0]
+    out = np.empty(m)
+    for t in prange(m):
+        cs = _min_angle_cos(points, tri[t, 0], tri[t, 1], tri[t, 2])
+        out[t] = np.degrees(np.arccos(min(max(cs, -1.0), 1.0)))
+    return out
 
 
 @njit(cache=True)

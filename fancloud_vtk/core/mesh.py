@@ -178,13 +178,11 @@ def fan_cloud_to_mesh(
     timings["distinct"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    key_sorted = np.sort(tri, axis=1)
-    quality = _min_angle(fancloud.points, tri) / 60.0
+    quality = MK.min_angles(fancloud.points, tri) / 60.0
     edge_uv, tri_edge, edge_off, edge_tri = MK.build_edges(tri, n)
-    tri_keys = (key_sorted[:, 0] * n + key_sorted[:, 1]) * n + key_sorted[:, 2]
-    order = np.argsort(tri_keys, kind="stable")
-    quads = MK.find_quads(fancloud.points, fancloud.normals, tri, tri_keys[order], order,
-                          edge_uv, edge_off, edge_tri, n)
+    v_edge_off, v_edges = MK.vertex_edges(edge_uv, n)
+    quads = MK.find_quads(fancloud.points, fancloud.normals, tri, edge_uv, edge_off, edge_tri,
+                          v_edge_off, v_edges)
     alive = np.ones(len(tri), bool)
     MK.resolve_quads(quads, count, quality, alive, True)
     stats["after_superfluous"] = int(alive.sum())
@@ -192,7 +190,6 @@ def fan_cloud_to_mesh(
 
     t0 = time.perf_counter()
     priority = -(count.astype(np.float64) + 0.5 * quality)
-    v_edge_off, v_edges = _vertex_edges(edge_uv, n)
     accepted, out_tri = MK.grow_manifold(tri, alive, priority, tri_edge, edge_uv, edge_off,
                                          edge_tri, n, True, fancloud.points, fancloud.normals,
                                          v_edge_off, v_edges)
@@ -255,32 +252,6 @@ def _spatial_order(fc: FanCloud):
 
 
 # -- stages --------------------------------------------------------------------
-
-def _min_angle(points: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """Smallest angle of every triangle, in degrees (0 for degenerate ones)."""
-    if len(tri) == 0:
-        return np.empty(0)
-    a, b, c = points[tri[:, 0]], points[tri[:, 1]], points[tri[:, 2]]
-    out = np.full(len(tri), 180.0)
-    for u, v, w in ((a, b, c), (b, c, a), (c, a, b)):
-        e1 = v - u
-        e2 = w - u
-        cos = np.einsum("ij,ij->i", e1, e2) / np.maximum(
-            np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1), 1e-300)
-        out = np.minimum(out, np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
-    return out
-
-
-def _vertex_edges(edge_uv: np.ndarray, n: int):
-    """Edges at every vertex (CSR)."""
-    ends = edge_uv.ravel()
-    order = np.argsort(ends, kind="stable")
-    off = np.zeros(n + 1, np.int64)
-    np.cumsum(np.bincount(ends, minlength=n), out=off[1:])
-    return off, (order // 2).astype(np.int64)
-
-
-# -- holes -------------------------------------------------------------------------
 
 def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds=4):
     """Triangulate the small boundary loops that are holes, not the real boundary.
@@ -408,10 +379,7 @@ def _insert_unused(fc: FanCloud, triangles):
     if len(todo) == 0 or len(triangles) == 0:
         return triangles, 0
     # vertex -> triangles (CSR)
-    flat = triangles.ravel()
-    by_vertex = np.argsort(flat, kind="stable") // 3
-    start = np.zeros(n + 1, np.int64)
-    np.cumsum(np.bincount(flat, minlength=n), out=start[1:])
+    start, by_vertex = MK.vertex_triangles(triangles, n)
     alive = np.ones(len(triangles), bool)
     extra = []
     pts = fc.points
