@@ -144,15 +144,16 @@ FAN_PARAMS: tuple[Param, ...] = (
 MESH_PARAMS: tuple[Param, ...] = (
     Param(
         "rings", "choice", "delaunay",
-        "where the triangles come from: 'delaunay' (each closed fan's local Delaunay ring "
+        "where the triangles come from: 'delaunay' (each fan's local Delaunay ring "
         "in its tangent plane, from its two fan rings; default) or 'fans' (the fans "
         "themselves, as in the paper)",
         choices=("delaunay", "fans"),
     ),
     Param(
         "close_holes", "bool", True,
-        "triangulate the holes the growing leaves inside the surface (loops whose points "
-        "all have closed fans); real boundaries stay open",
+        "triangulate the holes the growing leaves inside the surface (loops of at most "
+        "max_hole edges that do not run along the real boundary of open fans); real "
+        "boundaries stay open",
     ),
     Param(
         "max_hole", "int", 32, "largest boundary loop, in edges, that counts as a hole to close",
