@@ -200,7 +200,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_mesh)
 
-    p = sub.add_parser("demo", help="build, save and render the fan cloud of the bunny")
+    p = sub.add_parser("demo", help="fan cloud and mesh of the bunny: built, saved, rendered")
     p.add_argument("--out", default="fancloud_demo", help="output folder (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_demo)
