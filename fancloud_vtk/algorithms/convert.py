@@ -104,17 +104,24 @@ def points_of(dataset) -> np.ndarray:
     return np.array(vtk_to_numpy(vp.GetData()), dtype=np.float64, copy=True).reshape(-1, 3)
 
 
-def fancloud_to_vtk(fc: FanCloud) -> vtkPolyData:
-    """The fan cloud as ``vtkPolyData``: points, distinct triangles, arrays."""
+def _triangle_polydata(points, triangles, normals, point_data) -> vtkPolyData:
+    """Points, triangles as polys, the passthrough point arrays and ``Normals``."""
     out = vtkPolyData()
-    out.SetPoints(numpy_points(fc.points))
-    out.SetPolys(triangle_cells(fc.triangles()))
+    out.SetPoints(numpy_points(points))
+    out.SetPolys(triangle_cells(triangles))
     pd = out.GetPointData()
-    for name, arr in fc.point_data.items():
+    for name, arr in point_data.items():
         if name in RESERVED:
             continue
         pd.AddArray(_to_vtk_array(arr, name))
-    pd.SetNormals(_to_vtk_array(fc.normals, NORMALS))
+    pd.SetNormals(_to_vtk_array(normals, NORMALS))
+    return out
+
+
+def fancloud_to_vtk(fc: FanCloud) -> vtkPolyData:
+    """The fan cloud as ``vtkPolyData``: points, distinct triangles, arrays."""
+    out = _triangle_polydata(fc.points, fc.triangles(), fc.normals, fc.point_data)
+    pd = out.GetPointData()
     pd.AddArray(_to_vtk_array(fc.open.astype(np.uint8), FAN_OPEN))
     pd.AddArray(_to_vtk_array(fc.rotated.astype(np.uint8), FAN_ROTATED))
     fd = out.GetFieldData()
@@ -271,15 +278,7 @@ def mesh_to_vtk(mesh: TriangleMesh) -> vtkPolyData:
     arrays ``mesh_<name>`` with one value each (``mesh_final``,
     ``mesh_boundary_edges``, ``mesh_holes``, ...).
     """
-    out = vtkPolyData()
-    out.SetPoints(numpy_points(mesh.points))
-    out.SetPolys(triangle_cells(mesh.triangles))
-    pd = out.GetPointData()
-    for name, arr in mesh.point_data.items():
-        if name in RESERVED:
-            continue
-        pd.AddArray(_to_vtk_array(arr, name))
-    pd.SetNormals(_to_vtk_array(mesh.normals, NORMALS))
+    out = _triangle_polydata(mesh.points, mesh.triangles, mesh.normals, mesh.point_data)
     fd = out.GetFieldData()
     for key, value in mesh.stats.items():
         if isinstance(value, bool | int | float | np.integer | np.floating):

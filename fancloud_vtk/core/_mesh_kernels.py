@@ -103,41 +103,39 @@ def find_quads(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_
 
 
 @njit(cache=True)
+def csr_of(rows, n_keys):
+    """Rows grouped by the keys they hold (CSR): (off, idx), idx in increasing row order.
+
+    ``rows`` is (m, k): row r holds k keys in [0, n_keys); key x's rows are
+    ``idx[off[x]:off[x + 1]]`` (a row holding x twice appears twice).
+    """
+    m, k = rows.shape
+    off = np.zeros(n_keys + 1, np.int64)
+    for r in range(m):
+        for j in range(k):
+            off[rows[r, j] + 1] += 1
+    for x in range(n_keys):
+        off[x + 1] += off[x]
+    fill = off[:-1].copy()
+    idx = np.empty(off[n_keys], np.int64)
+    for r in range(m):
+        for j in range(k):
+            x = rows[r, j]
+            idx[fill[x]] = r
+            fill[x] += 1
+    return off, idx
+
+
+@njit(cache=True)
 def vertex_edges(edge_uv, n):
     """Edges at every vertex (CSR), each vertex's in increasing edge number."""
-    off = np.zeros(n + 1, np.int64)
-    for e in range(edge_uv.shape[0]):
-        off[edge_uv[e, 0] + 1] += 1
-        off[edge_uv[e, 1] + 1] += 1
-    for v in range(n):
-        off[v + 1] += off[v]
-    fill = off[:-1].copy()
-    out = np.empty(off[n], np.int64)
-    for e in range(edge_uv.shape[0]):
-        for k in range(2):
-            v = edge_uv[e, k]
-            out[fill[v]] = e
-            fill[v] += 1
-    return off, out
+    return csr_of(edge_uv, n)
 
 
 @njit(cache=True)
 def vertex_triangles(tri, n):
     """Triangles at every vertex (CSR), in increasing triangle number."""
-    off = np.zeros(n + 1, np.int64)
-    for t in range(tri.shape[0]):
-        for k in range(3):
-            off[tri[t, k] + 1] += 1
-    for v in range(n):
-        off[v + 1] += off[v]
-    fill = off[:-1].copy()
-    out = np.empty(off[n], np.int64)
-    for t in range(tri.shape[0]):
-        for k in range(3):
-            v = tri[t, k]
-            out[fill[v]] = t
-            fill[v] += 1
-    return off, out
+    return csr_of(tri, n)
 
 
 @njit(cache=True, parallel=True)
@@ -1068,19 +1066,7 @@ def build_edges(tri, n):
     increasing order.
     """
     m = tri.shape[0]
-    vt_off = np.zeros(n + 1, np.int64)
-    for t in range(m):
-        for k in range(3):
-            vt_off[tri[t, k] + 1] += 1
-    for v in range(n):
-        vt_off[v + 1] += vt_off[v]
-    fill = vt_off[:-1].copy()
-    vt = np.empty(3 * m, np.int64)
-    for t in range(m):
-        for k in range(3):
-            v = tri[t, k]
-            vt[fill[v]] = t
-            fill[v] += 1
+    vt_off, vt = csr_of(tri, n)
     per = np.zeros(n + 1, np.int64)
     n_chunks = min(max(n, 1), 256)
     for ch in prange(n_chunks):
@@ -1119,17 +1105,5 @@ def build_edges(tri, n):
                         else:
                             hi = mid
                     tri_edge[t, j] = base + lo
-    edge_off = np.zeros(n_edges + 1, np.int64)
-    for t in range(m):
-        for j in range(3):
-            edge_off[tri_edge[t, j] + 1] += 1
-    for e in range(n_edges):
-        edge_off[e + 1] += edge_off[e]
-    fill_e = edge_off[:-1].copy()
-    edge_tri = np.empty(3 * m, np.int64)
-    for t in range(m):
-        for j in range(3):
-            e = tri_edge[t, j]
-            edge_tri[fill_e[e]] = t
-            fill_e[e] += 1
+    edge_off, edge_tri = csr_of(tri_edge, n_edges)
     return edge_uv, tri_edge, edge_off, edge_tri
