@@ -204,44 +204,6 @@ def resolve_quads(quads, count, quality, alive, partial):
 # -- growing a 2-manifold ---------------------------------------------------
 
 @njit(cache=True)
-def _heap_push(hk, hv, size, key, val):
-    i = size
-    hk[i] = key
-    hv[i] = val
-    while i > 0:
-        parent = (i - 1) // 2
-        if hk[parent] < hk[i] or (hk[parent] == hk[i] and hv[parent] < hv[i]):
-            break
-        hk[parent], hk[i] = hk[i], hk[parent]
-        hv[parent], hv[i] = hv[i], hv[parent]
-        i = parent
-    return size + 1
-
-
-@njit(cache=True)
-def _heap_pop(hk, hv, size):
-    val = hv[0]
-    size -= 1
-    hk[0] = hk[size]
-    hv[0] = hv[size]
-    i = 0
-    while True:
-        a = 2 * i + 1
-        b = a + 1
-        best = i
-        if a < size and (hk[a] < hk[best] or (hk[a] == hk[best] and hv[a] < hv[best])):
-            best = a
-        if b < size and (hk[b] < hk[best] or (hk[b] == hk[best] and hv[b] < hv[best])):
-            best = b
-        if best == i:
-            break
-        hk[best], hk[i] = hk[i], hk[best]
-        hv[best], hv[i] = hv[i], hv[best]
-        i = best
-    return val, size
-
-
-@njit(cache=True)
 def tangent_frames(normals):
     """Per point a unit tangent pair (u, v) with (u, v, n) right-handed: (n, 6)."""
     n = normals.shape[0]
@@ -412,17 +374,20 @@ def _accept(t, how, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd,
 
 
 @njit(cache=True)
-def grow_manifold(tri, alive, priority, tri_edge, edge_uv, edge_off, edge_tri, n, pinch, points,
-                  normals, v_edge_off, v_edges):
+def grow_manifold(tri, alive, priority, level, tri_edge, edge_uv, edge_off, edge_tri, n, pinch,
+                  points, normals, v_edge_off, v_edges):
     """Grow a consistently oriented 2-manifold from the candidate triangles.
 
     Starting from the best triangle (lowest ``priority``), candidates that
-    share an edge with the mesh join one at a time in order of priority,
-    whenever :func:`_try_add` allows them; a candidate refused because a
-    vertex would become non-manifold is looked at again when the mesh
-    around it changes. When nothing more can join, the best candidate whose
-    vertices are all new seeds another piece. Returns (accepted, out_tri):
-    the accepted mask and the triangles in their final orientation.
+    share an edge with the mesh join one at a time, whenever
+    :func:`_try_add` allows them: those of the best ``level`` first (0 is
+    best: the most fans), first come first served within a level, so the
+    front advances through neighbouring triangles (few cache misses). A
+    candidate refused because a vertex would become non-manifold is looked
+    at again when the mesh around it changes. When nothing more can join,
+    the best candidate (by ``priority``) whose vertices are all new seeds
+    another piece. Returns (accepted, out_tri): the accepted mask and the
+    triangles in their final orientation.
     """
     m = tri.shape[0]
     n_edges = edge_uv.shape[0]
@@ -433,14 +398,18 @@ def grow_manifold(tri, alive, priority, tri_edge, edge_uv, edge_off, edge_tri, n
     accepted = np.zeros(m, np.bool_)
     dead = ~alive.copy()
     out_tri = tri.copy()
-    cap = m + 16  # a candidate is in the heap at most once
-    hk = np.empty(cap, np.float64)
-    hv = np.empty(cap, np.int64)
+    n_levels = 1
+    for t in range(m):
+        n_levels = max(n_levels, level[t] + 1)
+    cap = m + 1  # a candidate waits in at most one queue at a time
+    queue = np.empty((n_levels, cap), np.int64)
+    head = np.zeros(n_levels, np.int64)
+    tail = np.zeros(n_levels, np.int64)
     size = 0
     frames = tangent_frames(normals)
     wi = np.empty((2, 8), np.int64)  # scratch of _in_gap
     wa = np.empty((2, 8))
-    queued = np.zeros(m, np.bool_)  # in the heap now: no second copy
+    queued = np.zeros(m, np.bool_)  # waiting now: no second copy
     seeds = np.argsort(priority, kind="mergesort")
     s_next = 0
     while True:
@@ -453,12 +422,20 @@ def grow_manifold(tri, alive, priority, tri_edge, edge_uv, edge_off, edge_tri, n
                     continue
                 if v_count[tri[t, 0]] == 0 and v_count[tri[t, 1]] == 0 \
                         and v_count[tri[t, 2]] == 0 and not queued[t]:
-                    size = _heap_push(hk, hv, size, priority[t], t)
+                    lv = level[t]
+                    queue[lv, tail[lv] % cap] = t
+                    tail[lv] += 1
+                    size += 1
                     queued[t] = True
                     break
             if size == 0:
                 break
-        t, size = _heap_pop(hk, hv, size)
+        lv = 0
+        while head[lv] == tail[lv]:
+            lv += 1
+        t = queue[lv, head[lv] % cap]
+        head[lv] += 1
+        size -= 1
         queued[t] = False
         if dead[t] or accepted[t]:
             continue
@@ -472,13 +449,16 @@ def grow_manifold(tri, alive, priority, tri_edge, edge_uv, edge_off, edge_tri, n
             continue
         _accept(t, how, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, out_tri)
         accepted[t] = True
-        # the candidates on its edges (and around its vertices' edges) may join now
+        # the candidates on its edges may join now
         for j in range(3):
             e = tri_edge[t, j]
             for i in range(edge_off[e], edge_off[e + 1]):
                 c = edge_tri[i]
-                if c != t and not dead[c] and not accepted[c] and not queued[c] and size < cap:
-                    size = _heap_push(hk, hv, size, priority[c], c)
+                if c != t and not dead[c] and not accepted[c] and not queued[c]:
+                    lc = level[c]
+                    queue[lc, tail[lc] % cap] = c
+                    tail[lc] += 1
+                    size += 1
                     queued[c] = True
     return accepted, out_tri
 

@@ -203,9 +203,10 @@ def fan_cloud_to_mesh(
 
     t0 = time.perf_counter()
     priority = -(count.astype(np.float64) + 0.5 * quality)
-    accepted, out_tri = MK.grow_manifold(tri, alive, priority, tri_edge, edge_uv, edge_off,
-                                         edge_tri, n, True, fancloud.points, fancloud.normals,
-                                         v_edge_off, v_edges)
+    level = count.max(initial=1) - count  # 0: in the most fans
+    accepted, out_tri = MK.grow_manifold(tri, alive, priority, level, tri_edge, edge_uv,
+                                         edge_off, edge_tri, n, True, fancloud.points,
+                                         fancloud.normals, v_edge_off, v_edges)
     triangles = out_tri[accepted]
     keep = np.ones(len(triangles), bool)
     stats["pinch_cut"] = MK.split_pinched(triangles, keep, n)
