@@ -746,12 +746,6 @@ def split_pinched(triangles, keep, n):
 # -- holes -------------------------------------------------------------------
 
 @njit(cache=True)
-def _has_key(keys, x):
-    i = np.searchsorted(keys, x)
-    return i < keys.shape[0] and keys[i] == x
-
-
-@njit(cache=True)
 def _min_angle_cos(points, a, b, c):
     """The largest cosine of the three angles of a triangle (that of its smallest angle)."""
     best = -1.0
@@ -776,8 +770,8 @@ def _min_angle_cos(points, a, b, c):
 
 
 @njit(cache=True)
-def clip_ears(points, normals, loop_off, loop_verts, edge_keys, cand_keys, cand_counts, n,
-              out, ok):
+def clip_ears(points, normals, loop_off, loop_verts, triangles, vt_off, vt, cand_keys,
+              cand_counts, n, out, ok):
     """Triangulate boundary loops by clipping the best ear first.
 
     Loop ``i`` is ``loop_verts[loop_off[i]:loop_off[i + 1]]`` along the
@@ -785,10 +779,10 @@ def clip_ears(points, normals, loop_off, loop_verts, edge_keys, cand_keys, cand_
     row ``loop_off[i] - 2 i`` on, counter-clockwise around the normals
     (against the boundary half-edges). An ear (a, b, c) is convex in b's
     tangent plane, holds no other loop point there, and its new edge a-c is
-    neither in the mesh (``edge_keys``, sorted packed edges) nor made
-    earlier for this loop; the best ear is a fan triangle (the most fans,
-    from ``cand_keys``/``cand_counts``), then the one with the largest
-    smallest angle. ``ok[i]`` is False for a loop that cannot be closed so.
+    neither in the mesh (``triangles``, with the triangles at each vertex in
+    ``vt_off``/``vt``) nor made earlier for this loop; the best ear is a fan
+    triangle (the most fans, from ``cand_keys``/``cand_counts``), then the
+    one with the largest smallest angle. ``ok[i]`` is False for a loop that cannot be closed so.
     """
     n_loops = loop_off.shape[0] - 1
     for i in range(n_loops):
@@ -810,7 +804,7 @@ def clip_ears(points, normals, loop_off, loop_verts, edge_keys, cand_keys, cand_
                 b = poly[j]
                 c = poly[(j + 1) % m]
                 key = min(a, c) * n + max(a, c)
-                if _has_key(edge_keys, key):
+                if has_edge(triangles, vt_off, vt, a, c):
                     continue
                 dup = False
                 for t in range(nd):
@@ -1087,3 +1081,53 @@ def build_edges(tri, n):
                     tri_edge[t, j] = base + lo
     edge_off, edge_tri = csr_of(tri_edge, n_edges)
     return edge_uv, tri_edge, edge_off, edge_tri
+
+
+@njit(cache=True)
+def has_edge(triangles, vt_off, vt, a, c):
+    """Whether some triangle has the edge a-c (``vt_off``/``vt``: triangles at each vertex)."""
+    for i in range(vt_off[a], vt_off[a + 1]):
+        t = vt[i]
+        if triangles[t, 0] == c or triangles[t, 1] == c or triangles[t, 2] == c:
+            return True
+    return False
+
+
+@njit(cache=True)
+def boundary_loops_manifold(triangles, vt_off, vt, n):
+    """Boundary loops of a vertex-manifold mesh: (loop_off, loop_verts).
+
+    A half-edge a -> b is on the boundary when no triangle runs b -> a.
+    In a vertex-manifold mesh every boundary vertex starts exactly one
+    boundary half-edge, so following them gives the loops, each along the
+    mesh's boundary half-edges, started at its smallest vertex, loops in
+    order of that vertex.
+    """
+    nxt = np.full(n, -1, np.int64)
+    for t in range(triangles.shape[0]):
+        for j in range(3):
+            a = triangles[t, j]
+            b = triangles[t, (j + 1) % 3]
+            twin = False
+            for i in range(vt_off[b], vt_off[b + 1]):
+                s = vt[i]
+                for k in range(3):
+                    if triangles[s, k] == b and triangles[s, (k + 1) % 3] == a:
+                        twin = True
+                if twin:
+                    break
+            if not twin:
+                nxt[a] = b
+    seen = np.zeros(n, np.bool_)
+    loop_off = [0]
+    verts = []
+    for v in range(n):
+        if nxt[v] < 0 or seen[v]:
+            continue
+        x = v
+        while x >= 0 and not seen[x]:
+            seen[x] = True
+            verts.append(x)
+            x = nxt[x]
+        loop_off.append(len(verts))
+    return np.array(loop_off, np.int64), np.array(verts, np.int64)
