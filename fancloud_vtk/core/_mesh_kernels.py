@@ -1131,3 +1131,24 @@ def boundary_loops_manifold(triangles, vt_off, vt, n):
             x = nxt[x]
         loop_off.append(len(verts))
     return np.array(loop_off, np.int64), np.array(verts, np.int64)
+
+
+@njit(cache=True, parallel=True)
+def relabel_rings(offsets, ring, order, rank):
+    """Rings (CSR) of the points taken in ``order``, with indices renamed by ``rank``.
+
+    Point i of the result is point ``order[i]``; ``rank`` is the inverse
+    permutation.
+    """
+    n = order.shape[0]
+    out_off = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        p = order[i]
+        out_off[i + 1] = out_off[i] + offsets[p + 1] - offsets[p]
+    out = np.empty(out_off[n], np.int64)
+    for i in prange(n):
+        p = order[i]
+        o = out_off[i]
+        for j in range(offsets[p], offsets[p + 1]):
+            out[o + j - offsets[p]] = rank[ring[j]]
+    return out_off, out

@@ -254,16 +254,10 @@ def _spatial_order(fc: FanCloud):
     """
     from .fans import _Grid
 
-    order = _Grid(fc.points).order
-    rank = np.empty_like(order)
-    rank[order] = np.arange(len(order), dtype=order.dtype)
-    sizes = np.diff(fc.offsets)[order]
-    offsets = np.zeros(len(order) + 1, np.int64)
-    np.cumsum(sizes, out=offsets[1:])
-    starts = np.repeat(fc.offsets[:-1][order], sizes)
-    within = np.arange(offsets[-1], dtype=np.int64) - np.repeat(offsets[:-1], sizes)
-    ring = rank[fc.ring[starts + within]]
-    return order, FanCloud(fc.points[order], offsets, ring, fc.normals[order], fc.open[order],
+    grid = _Grid(fc.points)
+    order = grid.order
+    offsets, ring = MK.relabel_rings(fc.offsets, fc.ring, order, grid.pos)
+    return order, FanCloud(grid.sorted_points, offsets, ring, fc.normals[order], fc.open[order],
                            fc.rotated[order])
 
 
