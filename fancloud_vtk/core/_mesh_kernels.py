@@ -374,12 +374,14 @@ def _accept(t, how, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd,
 
 
 @njit(cache=True)
-def grow_manifold(tri, alive, priority, level, tri_edge, edge_uv, edge_off, edge_tri, n, pinch,
-                  points, normals, v_edge_off, v_edges):
+def grow_manifold(tri, alive, pre, priority, level, tri_edge, edge_uv, edge_off, edge_tri, n,
+                  pinch, points, normals, v_edge_off, v_edges):
     """Grow a consistently oriented 2-manifold from the candidate triangles.
 
-    Starting from the best triangle (lowest ``priority``), candidates that
-    share an edge with the mesh join one at a time, whenever
+    The triangles of ``pre`` (uncontested, see ``fan_cloud_to_mesh``) are
+    accepted first, all at once. Then, and from the best triangle (lowest
+    ``priority``) for pieces they do not reach, candidates that share an
+    edge with the mesh join one at a time, whenever
     :func:`_try_add` allows them: those of the best ``level`` first (0 is
     best: the most fans), first come first served within a level, so the
     front advances through neighbouring triangles (few cache misses). A
@@ -405,11 +407,29 @@ def grow_manifold(tri, alive, priority, level, tri_edge, edge_uv, edge_off, edge
     queue = np.empty((n_levels, cap), np.int64)
     head = np.zeros(n_levels, np.int64)
     tail = np.zeros(n_levels, np.int64)
-    size = 0
     frames = tangent_frames(normals)
     wi = np.empty((2, 8), np.int64)  # scratch of _in_gap
     wa = np.empty((2, 8))
     queued = np.zeros(m, np.bool_)  # waiting now: no second copy
+    # the triangles accepted beforehand, and the candidates beside them
+    size = 0
+    for t in range(m):
+        if pre[t] and not dead[t]:
+            _accept(t, 1, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, out_tri)
+            accepted[t] = True
+    for t in range(m):
+        if not accepted[t]:
+            continue
+        for j in range(3):
+            e = tri_edge[t, j]
+            for i in range(edge_off[e], edge_off[e + 1]):
+                c = edge_tri[i]
+                if not dead[c] and not accepted[c] and not queued[c]:
+                    lc = level[c]
+                    queue[lc, tail[lc] % cap] = c
+                    tail[lc] += 1
+                    size += 1
+                    queued[c] = True
     seeds = np.argsort(priority, kind="mergesort")
     s_next = 0
     while True:
@@ -658,6 +678,49 @@ def _root(parent, x):
 
 
 @njit(cache=True)
+def _pinched_at(triangles, keep, vt_off, vt, v, parent, size):
+    """Union the kept triangles around v that share an edge at v; return the fan count.
+
+    ``parent``/``size`` are scratch of at least the number of triangles at v;
+    afterwards ``parent`` holds the fan of each (by its root position).
+    """
+    a0 = vt_off[v]
+    k = vt_off[v + 1] - a0
+    for i in range(k):
+        parent[i] = i
+        size[i] = 0
+    for i in range(k):
+        ti = vt[a0 + i]
+        if not keep[ti]:
+            continue
+        for j in range(i + 1, k):
+            tj = vt[a0 + j]
+            if not keep[tj]:
+                continue
+            shared = False
+            for x in range(3):
+                w = triangles[ti, x]
+                if w == v:
+                    continue
+                for y in range(3):
+                    if triangles[tj, y] == w:
+                        shared = True
+            if shared:
+                ri = _root(parent, i)
+                rj = _root(parent, j)
+                if ri != rj:
+                    parent[max(ri, rj)] = min(ri, rj)
+    n_fans = 0
+    for i in range(k):
+        if keep[vt[a0 + i]]:
+            r = _root(parent, i)
+            if size[r] == 0:
+                n_fans += 1
+            size[r] += 1
+    return n_fans
+
+
+@njit(cache=True)
 def split_pinched(triangles, keep, n):
     """Cut non-manifold vertices: keep only the largest fan of triangles around each.
 
@@ -665,82 +728,45 @@ def split_pinched(triangles, keep, n):
     that met at a corner and never closed the gap between them) keeps its
     largest fan (ties: the one with the lowest triangle number); the other
     triangles are dropped (``keep`` updated), leaving small holes for the
-    hole closing. Repeats until no vertex is pinched (dropping a triangle
-    can split another vertex's fan). Returns the number dropped.
+    hole closing. Dropping a triangle can split another vertex's fan, so
+    the vertices of dropped triangles are looked at again, until none is
+    pinched. Returns the number dropped.
     """
-    m = triangles.shape[0]
+    vt_off, vt = csr_of(triangles, n)
+    width = 1
+    for v in range(n):
+        width = max(width, vt_off[v + 1] - vt_off[v])
+    parent = np.empty(width, np.int64)
+    size = np.empty(width, np.int64)
+    todo = np.arange(n)
+    mark = np.zeros(n, np.bool_)
     dropped = 0
-    while True:
-        # vertex -> kept triangles (CSR)
-        deg = np.zeros(n + 1, np.int64)
-        for t in range(m):
-            if keep[t]:
-                for j in range(3):
-                    deg[triangles[t, j] + 1] += 1
-        for v in range(n):
-            deg[v + 1] += deg[v]
-        fill = deg[:-1].copy()
-        vt = np.empty(deg[n], np.int64)
-        for t in range(m):
-            if keep[t]:
-                for j in range(3):
-                    v = triangles[t, j]
-                    vt[fill[v]] = t
-                    fill[v] += 1
-        changed = 0
-        parent = np.empty(64, np.int64)
-        size = np.empty(64, np.int64)
-        for v in range(n):
-            a0 = deg[v]
-            a1 = deg[v + 1]
-            k = a1 - a0
-            if k < 2:
+    while todo.shape[0] > 0:
+        nxt = []
+        for v in todo:
+            mark[v] = False
+            if vt_off[v + 1] - vt_off[v] < 2:
                 continue
-            if k > parent.shape[0]:
-                parent = np.empty(2 * k, np.int64)
-                size = np.empty(2 * k, np.int64)
-            for i in range(k):
-                parent[i] = i
-            # triangles around v sharing an edge (v, w) are in one fan
-            for i in range(k):
-                ti = vt[a0 + i]
-                for j in range(i + 1, k):
-                    tj = vt[a0 + j]
-                    shared = 0
-                    for x in range(3):
-                        w = triangles[ti, x]
-                        if w == v:
-                            continue
-                        for y in range(3):
-                            if triangles[tj, y] == w:
-                                shared += 1
-                    if shared > 0:
-                        ri = _root(parent, i)
-                        rj = _root(parent, j)
-                        if ri != rj:
-                            parent[max(ri, rj)] = min(ri, rj)
-            n_roots = 0
-            for i in range(k):
-                size[i] = 0
-            for i in range(k):
-                r = _root(parent, i)
-                size[r] += 1
-            for i in range(k):
-                if size[i] > 0:
-                    n_roots += 1
-            if n_roots < 2:
+            if _pinched_at(triangles, keep, vt_off, vt, v, parent, size) < 2:
                 continue
+            a0 = vt_off[v]
+            k = vt_off[v + 1] - a0
             best = -1
             for i in range(k):
-                if size[i] > 0 and (best < 0 or size[i] > size[best]):
+                if keep[vt[a0 + i]] and size[i] > 0 and (best < 0 or size[i] > size[best]):
                     best = i
             for i in range(k):
-                if _root(parent, i) != best:
-                    keep[vt[a0 + i]] = False
-                    changed += 1
-        dropped += changed
-        if changed == 0:
-            return dropped
+                t = vt[a0 + i]
+                if keep[t] and _root(parent, i) != best:
+                    keep[t] = False
+                    dropped += 1
+                    for j in range(3):
+                        w = triangles[t, j]
+                        if not mark[w]:
+                            mark[w] = True
+                            nxt.append(w)
+        todo = np.array(nxt, np.int64)
+    return dropped
 
 
 # -- holes -------------------------------------------------------------------
@@ -1152,3 +1178,45 @@ def relabel_rings(offsets, ring, order, rank):
         for j in range(offsets[p], offsets[p + 1]):
             out[o + j - offsets[p]] = rank[ring[j]]
     return out_off, out
+
+
+@njit(cache=True, parallel=True)
+def uncontested(tri, alive, count, tri_edge, n_edges, min_count):
+    """Live triangles in at least ``min_count`` fans that no other candidate contests.
+
+    Each of their edges carries at most two live candidates, and where two
+    of them share an edge they run it in opposite directions.
+    """
+    m = tri.shape[0]
+    per_edge = np.zeros(n_edges, np.int64)
+    for t in range(m):
+        if alive[t]:
+            for j in range(3):
+                per_edge[tri_edge[t, j]] += 1
+    pre = np.zeros(m, np.bool_)
+    for t in prange(m):
+        if alive[t] and count[t] >= min_count:
+            ok = True
+            for j in range(3):
+                if per_edge[tri_edge[t, j]] > 2:
+                    ok = False
+            pre[t] = ok
+    # +1 for each pre triangle running its edge from the smaller vertex, -1 else
+    flow = np.zeros(n_edges, np.int64)
+    times = np.zeros(n_edges, np.int64)
+    for t in range(m):
+        if pre[t]:
+            for j in range(3):
+                e = tri_edge[t, j]
+                times[e] += 1
+                flow[e] += 1 if tri[t, j] < tri[t, (j + 1) % 3] else -1
+    out = np.zeros(m, np.bool_)
+    for t in prange(m):
+        if pre[t]:
+            ok = True
+            for j in range(3):
+                e = tri_edge[t, j]
+                if times[e] == 2 and flow[e] != 0:
+                    ok = False
+            out[t] = ok
+    return out
