@@ -291,52 +291,58 @@ def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds
     for _ in range(rounds):
         vt_off, vt = MK.vertex_triangles(triangles, n)
         loop_off, loop_verts = MK.boundary_loops_manifold(triangles, vt_off, vt, n)
-        loops = [lp for lp in np.split(loop_verts, loop_off[1:-1])
-                 if len(lp) == 3 or ((len(lp) <= max_hole or widened[lp].any())
-                                     and not (fc.open[lp].any() and _on_real_boundary(fc, lp)))]
-        if not loops:
+        sizes = np.diff(loop_off)
+        if len(sizes) == 0:
             break
+        starts = loop_off[:-1]
+        any_open = np.add.reduceat(fc.open[loop_verts].astype(np.int64), starts) > 0
+        any_wide = np.add.reduceat(widened[loop_verts].astype(np.int64), starts) > 0
+        take = (sizes == 3) | (((sizes <= max_hole) | any_wide) & ~any_open)
+        for i in np.flatnonzero(any_open & ((sizes <= max_hole) | any_wide) & (sizes > 3)):
+            take[i] = not _on_real_boundary(fc, loop_verts[starts[i]:loop_off[i + 1]])
+        ids = np.flatnonzero(take)
+        if len(ids) == 0:
+            break
+        loop_id = np.repeat(np.arange(len(sizes)), sizes)
+        on_taken = np.repeat(take, sizes)
         used = np.zeros(n, bool)
         used[triangles.ravel()] = True
         loop_of = np.full(n, -1, np.int64)
-        for i, loop in enumerate(loops):
-            loop_of[loop] = i
+        loop_of[loop_verts[on_taken]] = loop_id[on_taken]
         interior = {}
         for p in np.flatnonzero(~used & ~fc.open).tolist():
-            ids = loop_of[fc.neighbours(p)]
-            ids = ids[ids >= 0]
-            if len(ids):
-                interior.setdefault(int(np.bincount(ids).argmax()), []).append(p)
+            near = loop_of[fc.neighbours(p)]
+            near = near[near >= 0]
+            if len(near):
+                interior.setdefault(int(np.bincount(near).argmax()), []).append(p)
         edges = (triangles, vt_off, vt)
         new = []
         failed = []
-        plain = []
-        for i, loop in enumerate(loops):
-            pts = interior.get(i, [])
-            if not pts:
-                plain.append(loop)
-                continue
+        plain = take.copy()  # loops for the ear clipping
+        for i, pts in interior.items():
+            loop = loop_verts[starts[i]:loop_off[i + 1]]
             tris = _star(fc, loop, pts[0], edges) if len(pts) == 1 else None
             if tris is None:
                 tris = _delaunay_fill(fc, loop, pts, edges)
             if tris is None:  # the points inside are split in afterwards
-                plain.append(loop)
                 continue
+            plain[i] = False
             new.append(np.array(tris, np.int64))
             closed += 1
             inserted += len({int(v) for t in tris for v in t} - set(loop.tolist()))
-        if plain:
-            sizes = np.array([len(lp) for lp in plain], np.int64)
-            loop_off = np.zeros(len(plain) + 1, np.int64)
-            np.cumsum(sizes, out=loop_off[1:])
-            out = np.empty((int((sizes - 2).sum()), 3), np.int64)
-            ok = np.zeros(len(plain), bool)
-            MK.clip_ears(fc.points, fc.normals, loop_off, np.concatenate(plain), triangles, vt_off,
-                         vt, cand_keys, cand_counts, n, out, ok)
-            rows = np.repeat(ok, sizes - 2)
-            new.append(out[rows])
+        if plain.any():
+            sel = np.repeat(plain, sizes)
+            p_sizes = sizes[plain]
+            p_off = np.zeros(len(p_sizes) + 1, np.int64)
+            np.cumsum(p_sizes, out=p_off[1:])
+            out = np.empty((int((p_sizes - 2).sum()), 3), np.int64)
+            ok = np.zeros(len(p_sizes), bool)
+            MK.clip_ears(fc.points, fc.normals, p_off, loop_verts[sel], triangles, vt_off, vt,
+                         cand_keys, cand_counts, n, out, ok)
+            new.append(out[np.repeat(ok, p_sizes - 2)])
             closed += int(ok.sum())
-            failed.extend(lp for lp, good in zip(plain, ok.tolist(), strict=True) if not good)
+            bad = np.flatnonzero(plain)[~ok]
+            failed.extend(loop_verts[starts[i]:loop_off[i + 1]] for i in bad)
         new = [t for t in new if len(t)]
         if new:
             triangles = np.vstack([triangles, *new])
