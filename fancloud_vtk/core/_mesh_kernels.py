@@ -60,6 +60,35 @@ def _triangle_on(tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, u, v, x)
 
 
 @njit(cache=True)
+def _quads_at(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_edges, e, out,
+              row):
+    """The doubly covered quads on edge e (see :func:`find_quads`); written from ``row`` on
+    when ``out`` has rows, else only counted. Returns their number."""
+    x = edge_uv[e, 0]
+    y = edge_uv[e, 1]
+    c = 0
+    for i in range(edge_off[e], edge_off[e + 1]):
+        t1 = edge_tri[i]
+        u = tri[t1, 0] + tri[t1, 1] + tri[t1, 2] - x - y
+        for j in range(i + 1, edge_off[e + 1]):
+            t2 = edge_tri[j]
+            v = tri[t2, 0] + tri[t2, 1] + tri[t2, 2] - x - y
+            if u == v or not _opposite(points, normals, x, y, u, v):
+                continue
+            t3 = _triangle_on(tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, u, v, x)
+            t4 = _triangle_on(tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, u, v, y)
+            if t3 < 0 and t4 < 0:
+                continue
+            if out.shape[0] > 0:
+                out[row + c, 0] = t1
+                out[row + c, 1] = t2
+                out[row + c, 2] = t3
+                out[row + c, 3] = t4
+            c += 1
+    return c
+
+
+@njit(cache=True, parallel=True)
 def find_quads(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_edges):
     """Quadrilaterals covered by both diagonals' triangulations.
 
@@ -68,38 +97,23 @@ def find_quads(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_
     the edge u-v. Returns rows ``(t_xyu, t_xyv, t_uvx, t_uvy)`` with -1 for a
     missing triangle, for every quad where at least one of the other
     diagonal's triangles exists, and u and v lie on opposite sides of x y
-    (a real quadrilateral, not two triangles folded onto each other).
+    (a real quadrilateral, not two triangles folded onto each other); in
+    order of the edge x-y.
     """
     n_edges = edge_uv.shape[0]
-    cap = 1024
-    out = np.empty((cap, 4), np.int64)
-    m = 0
+    per = np.zeros(n_edges + 1, np.int64)
+    none = np.empty((0, 4), np.int64)
+    for e in prange(n_edges):
+        per[e + 1] = _quads_at(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off,
+                               v_edges, e, none, 0)
     for e in range(n_edges):
-        x = edge_uv[e, 0]
-        y = edge_uv[e, 1]
-        for i in range(edge_off[e], edge_off[e + 1]):
-            t1 = edge_tri[i]
-            u = tri[t1, 0] + tri[t1, 1] + tri[t1, 2] - x - y
-            for j in range(i + 1, edge_off[e + 1]):
-                t2 = edge_tri[j]
-                v = tri[t2, 0] + tri[t2, 1] + tri[t2, 2] - x - y
-                if u == v or not _opposite(points, normals, x, y, u, v):
-                    continue
-                t3 = _triangle_on(tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, u, v, x)
-                t4 = _triangle_on(tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, u, v, y)
-                if t3 < 0 and t4 < 0:
-                    continue
-                if m == cap:
-                    bigger = np.empty((2 * cap, 4), np.int64)
-                    bigger[:m] = out[:m]
-                    out = bigger
-                    cap *= 2
-                out[m, 0] = t1
-                out[m, 1] = t2
-                out[m, 2] = t3
-                out[m, 3] = t4
-                m += 1
-    return out[:m]
+        per[e + 1] += per[e]
+    out = np.empty((per[n_edges], 4), np.int64)
+    for e in prange(n_edges):
+        if per[e + 1] > per[e]:
+            _quads_at(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_edges, e,
+                      out, per[e])
+    return out
 
 
 @njit(cache=True)
@@ -540,24 +554,23 @@ def _hull_ring(xs, ys, m, idx, order, hull, origin_inside):
 
 @njit(cache=True)
 def _delaunay_ring(points, normals, offsets, ring, is_open, p, max_ring, cand, xs, ys, order,
-                   hull, out):
-    """Write p's local Delaunay ring to out; return its size, or -1 (keep the fan's ring)."""
+                   hull, stamp, table):
+    """Write p's local Delaunay ring to table[p]; return its size, or -1 (keep the fan's ring).
+
+    ``stamp`` (n,) marks the candidates already taken for p (value p).
+    """
     cap = cand.shape[0]
     m = 0
+    stamp[p] = p
     for a in range(offsets[p], offsets[p + 1]):
         q = ring[a]
         for b in range(offsets[q] - 1, offsets[q + 1]):
             s = q if b < offsets[q] else ring[b]
-            if s == p:
+            if stamp[s] == p or m >= cap - 1:
                 continue
-            dup = False
-            for c in range(m):
-                if cand[c] == s:
-                    dup = True
-                    break
-            if not dup and m < cap - 1:
-                cand[m] = s
-                m += 1
+            stamp[s] = p
+            cand[m] = s
+            m += 1
     nx, ny, nz = normals[p, 0], normals[p, 1], normals[p, 2]
     if abs(nx) < 0.9:
         ux, uy, uz = 0.0, nz, -ny
@@ -616,7 +629,7 @@ def _delaunay_ring(points, normals, offsets, ring, is_open, p, max_ring, cand, x
         if at < 0 or h < 3 or h - 1 > max_ring:
             return -1
         for t in range(h - 1):
-            out[t] = cand[hull[(at + 1 + t) % h]]
+            table[p, t] = cand[hull[(at + 1 + t) % h]]
         return h - 1
     h = _hull_ring(xs, ys, mm, cand, order, hull, True)
     if h < 3 or h > max_ring:
@@ -627,12 +640,12 @@ def _delaunay_ring(points, normals, offsets, ring, is_open, p, max_ring, cand, x
         if cand[hull[t]] < cand[hull[first]]:
             first = t
     for t in range(h):
-        out[t] = cand[hull[(first + t) % h]]
+        table[p, t] = cand[hull[(first + t) % h]]
     return h
 
 
 @njit(cache=True, parallel=True)
-def delaunay_rings(points, normals, offsets, ring, is_open, max_ring):
+def delaunay_rings(points, normals, offsets, ring, is_open, max_ring, n_chunks):
     """Each closed fan's ring replaced by its local Delaunay ring.
 
     The candidates of point p are its fan neighbours and theirs (two rings
@@ -645,12 +658,14 @@ def delaunay_rings(points, normals, offsets, ring, is_open, max_ring):
     the inversions and p itself, in order from just after p: an open
     Delaunay fan. A closed fan whose candidates do not surround it keeps
     its ring. Returns (counts, table): ``table[p, :counts[p]]`` the new
-    ring.
+    ring. The work is split in ``n_chunks`` parts (each with an (n,)
+    scratch array, so a few: about one per thread); the result does not
+    depend on the split.
     """
     n = points.shape[0]
     counts = np.zeros(n, np.int64)
-    table = np.full((n, max_ring), -1, np.int64)
-    n_chunks = min(n, 256)
+    table = np.empty((n, max_ring), np.int64)
+    n_chunks = max(1, min(n, n_chunks))
     for ch in prange(n_chunks):
         cap = 256
         cand = np.empty(cap, np.int64)
@@ -658,9 +673,10 @@ def delaunay_rings(points, normals, offsets, ring, is_open, max_ring):
         ys = np.empty(cap)
         order = np.empty(cap, np.int64)
         hull = np.empty(cap + 1, np.int64)
+        stamp = np.full(n, -1, np.int64)
         for p in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
             h = _delaunay_ring(points, normals, offsets, ring, is_open[p], p, max_ring, cand, xs,
-                               ys, order, hull, table[p])
+                               ys, order, hull, stamp, table)
             if h < 0:  # keep the fan's own ring
                 h = offsets[p + 1] - offsets[p]
                 for a in range(h):

@@ -45,6 +45,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from . import _mesh_kernels as MK
@@ -179,7 +180,8 @@ def fan_cloud_to_mesh(
     if rings == "delaunay":
         width = max(MAX_RING, int(fancloud.fan_sizes.max(initial=0)))
         counts, table = MK.delaunay_rings(fancloud.points, fancloud.normals, fancloud.offsets,
-                                          fancloud.ring, fancloud.open, width)
+                                          fancloud.ring, fancloud.open, width,
+                                          2 * numba.get_num_threads())
         offsets = np.zeros(n + 1, np.int64)
         np.cumsum(counts, out=offsets[1:])
         ring = table[np.arange(width)[None, :] < counts[:, None]]
