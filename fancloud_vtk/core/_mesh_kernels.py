@@ -1135,7 +1135,7 @@ def has_edge(triangles, vt_off, vt, a, c):
     return False
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def boundary_loops_manifold(triangles, vt_off, vt, n):
     """Boundary loops of a vertex-manifold mesh: (loop_off, loop_verts).
 
@@ -1145,8 +1145,9 @@ def boundary_loops_manifold(triangles, vt_off, vt, n):
     mesh's boundary half-edges, started at its smallest vertex, loops in
     order of that vertex.
     """
-    nxt = np.full(n, -1, np.int64)
-    for t in range(triangles.shape[0]):
+    m = triangles.shape[0]
+    on_boundary = np.zeros((m, 3), np.bool_)
+    for t in prange(m):
         for j in range(3):
             a = triangles[t, j]
             b = triangles[t, (j + 1) % 3]
@@ -1158,8 +1159,12 @@ def boundary_loops_manifold(triangles, vt_off, vt, n):
                         twin = True
                 if twin:
                     break
-            if not twin:
-                nxt[a] = b
+            on_boundary[t, j] = not twin
+    nxt = np.full(n, -1, np.int64)
+    for t in range(m):
+        for j in range(3):
+            if on_boundary[t, j]:
+                nxt[triangles[t, j]] = triangles[t, (j + 1) % 3]
     seen = np.zeros(n, np.bool_)
     loop_off = [0]
     verts = []
