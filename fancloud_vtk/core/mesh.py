@@ -18,8 +18,9 @@ step before them and a last one after:
    of its diagonals' triangulations (three or four fan triangles), one
    triangulation stays: a complete one over an incomplete one, then the one
    more fans agree on, then the better-shaped one (larger smallest angle).
-3. **A 2-manifold grown** from what remains, one triangle at a time in
-   order of count and shape, each joining through an edge of the mesh:
+3. **A 2-manifold grown** from what remains: the uncontested triangles
+   (in all three fans, alone on their edges) at once, then the rest one
+   at a time, most fans first, each joining through an edge of the mesh:
    never a third triangle on an edge, never a second fan of triangles
    around a vertex (non-manifold vertex), every interior edge run once in
    each direction (consistent orientation). Topological as in the paper,
