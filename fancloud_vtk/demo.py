@@ -22,7 +22,7 @@ def render_fancloud(fc, path: str, title: str = "") -> None:
     # without a display VTK warns "bad X server connection" and renders
     # offscreen all the same: keep errors, drop that warning
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
-    mesh = fc.to_pyvista()
+    mesh = pv.wrap(fc.to_vtk())
     pl = pv.Plotter(off_screen=True, shape=(1, 2), window_size=(1400, 700), border=False)
     pl.subplot(0, 0)
     pl.add_text(f"{title}fan cloud, shaded ({fc.n_points:,} points)", font_size=10)
@@ -53,7 +53,7 @@ def render_mesh(fc, mesh, path: str, title: str = "") -> None:
     pl.subplot(0, 0)
     pl.add_text(f"{title}fan cloud ({fc.n_points:,} points, "
                 f"{len(fc.triangles()):,} distinct fan triangles)", font_size=10)
-    pl.add_mesh(fc.to_pyvista(), color="#d8c8a8", smooth_shading=True, specular=0.3)
+    pl.add_mesh(pv.wrap(fc.to_vtk()), color="#d8c8a8", smooth_shading=True, specular=0.3)
     pl.subplot(0, 1)
     pl.add_text(f"{title}mesh ({mesh.n_triangles:,} triangles, {s['holes']} holes, "
                 f"{s['non_manifold_edges'] + s['non_manifold_vertices']} non-manifold)",

@@ -70,7 +70,7 @@ def test_to_vtk_public_array_names_and_dtypes(cube_fc):
 
 
 def test_pyvista_view_of_the_contract(cube_fc):
-    mesh = cube_fc.to_pyvista()
+    mesh = pv.wrap(cube_fc.to_vtk())
     assert isinstance(mesh, pv.PolyData)
     assert mesh.n_points == N
     assert mesh.point_data["Normals"].dtype == np.float64
@@ -81,7 +81,7 @@ def test_pyvista_view_of_the_contract(cube_fc):
 
 
 def test_polys_are_the_distinct_fan_triangles(cube_fc):
-    mesh = cube_fc.to_pyvista()
+    mesh = pv.wrap(cube_fc.to_vtk())
     assert mesh.is_all_triangles
     faces = mesh.regular_faces
     np.testing.assert_array_equal(faces, cube_fc.triangles())
@@ -119,7 +119,7 @@ def test_round_trip_through_vtk_polydata(cube_fc):
 
 
 def test_round_trip_through_pyvista(cube_fc):
-    mesh = cube_fc.to_pyvista()
+    mesh = pv.wrap(cube_fc.to_vtk())
     back = FanCloud.from_vtk(mesh)
     assert_same_fancloud(cube_fc, back)
     assert_same_fancloud(cube_fc, mesh.fancloud.to_fancloud())
@@ -204,14 +204,14 @@ def test_from_vtk_of_a_plain_cloud_names_the_missing_arrays(cube_fc):
     ],
 )
 def test_from_vtk_with_malformed_fan_arrays(cube_fc, name, values, match):
-    mesh = cube_fc.to_pyvista()
+    mesh = pv.wrap(cube_fc.to_vtk())
     mesh.point_data[name] = values
     with pytest.raises(ValueError, match=match):
         FanCloud.from_vtk(mesh)
 
 
 def test_from_vtk_with_inconsistent_ring_names_it(cube_fc):
-    mesh = cube_fc.to_pyvista()
+    mesh = pv.wrap(cube_fc.to_vtk())
     ring = mesh.field_data["fan_ring"].copy()
     ring[7] = N + 5
     mesh.field_data["fan_ring"] = ring

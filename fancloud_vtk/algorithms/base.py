@@ -96,7 +96,7 @@ class FanCloudAlgorithm(VTKPythonAlgorithmBase):
 
     def execute(self, *inputs):
         """Compute the output data object from the input data objects."""
-        raise NotImplementedError  # each algorithm defines it
+        raise TypeError(f"{type(self).__name__} defines no execute(): it is not an algorithm")
 
 
 def run(algorithm, port: int = 0):

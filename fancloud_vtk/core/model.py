@@ -239,16 +239,14 @@ class FanCloud:
 
     # -- VTK conversions (import VTK lazily; the core stays VTK-free) ----
     def to_vtk(self):
-        """This fan cloud as a ``vtkPolyData`` (see :func:`fancloud_to_vtk`)."""
+        """This fan cloud as a ``vtkPolyData`` (see :func:`fancloud_to_vtk`).
+
+        For PyVista: ``pyvista.wrap(fc.to_vtk())`` (the core never imports
+        pyvista, so that ParaView's VTK 9.2 can load it).
+        """
         from fancloud_vtk.algorithms.convert import fancloud_to_vtk
 
         return fancloud_to_vtk(self)
-
-    def to_pyvista(self):
-        """This fan cloud as a ``pyvista.PolyData`` (points, distinct triangles, arrays)."""
-        import pyvista as pv
-
-        return pv.wrap(self.to_vtk())
 
     @classmethod
     def from_vtk(cls, dataset) -> FanCloud:
