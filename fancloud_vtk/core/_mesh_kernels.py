@@ -218,26 +218,32 @@ def resolve_quads(quads, count, quality, alive, partial):
 # -- growing a 2-manifold ---------------------------------------------------
 
 @njit(cache=True)
+def _tangent(nx, ny, nz):
+    """A unit tangent pair (u, v) of the unit normal n, with (u, v, n) right-handed."""
+    if abs(nx) < 0.9:
+        ux, uy, uz = 0.0, nz, -ny
+    else:
+        ux, uy, uz = -nz, 0.0, nx
+    s = np.sqrt(ux * ux + uy * uy + uz * uz)
+    ux /= s
+    uy /= s
+    uz /= s
+    return ux, uy, uz, ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
+
+
+@njit(cache=True)
 def tangent_frames(normals):
     """Per point a unit tangent pair (u, v) with (u, v, n) right-handed: (n, 6)."""
     n = normals.shape[0]
     out = np.empty((n, 6))
     for i in range(n):
-        nx, ny, nz = normals[i, 0], normals[i, 1], normals[i, 2]
-        if abs(nx) < 0.9:
-            ux, uy, uz = 0.0, nz, -ny
-        else:
-            ux, uy, uz = -nz, 0.0, nx
-        s = np.sqrt(ux * ux + uy * uy + uz * uz)
-        ux /= s
-        uy /= s
-        uz /= s
+        ux, uy, uz, vx, vy, vz = _tangent(normals[i, 0], normals[i, 1], normals[i, 2])
         out[i, 0] = ux
         out[i, 1] = uy
         out[i, 2] = uz
-        out[i, 3] = ny * uz - nz * uy
-        out[i, 4] = nz * ux - nx * uz
-        out[i, 5] = nx * uy - ny * ux
+        out[i, 3] = vx
+        out[i, 4] = vy
+        out[i, 5] = vz
     return out
 
 
@@ -571,18 +577,7 @@ def _delaunay_ring(points, normals, offsets, ring, is_open, p, max_ring, cand, x
             stamp[s] = p
             cand[m] = s
             m += 1
-    nx, ny, nz = normals[p, 0], normals[p, 1], normals[p, 2]
-    if abs(nx) < 0.9:
-        ux, uy, uz = 0.0, nz, -ny
-    else:
-        ux, uy, uz = -nz, 0.0, nx
-    s = np.sqrt(ux * ux + uy * uy + uz * uz)
-    ux /= s
-    uy /= s
-    uz /= s
-    vx = ny * uz - nz * uy
-    vy = nz * ux - nx * uz
-    vz = nx * uy - ny * ux
+    ux, uy, uz, vx, vy, vz = _tangent(normals[p, 0], normals[p, 1], normals[p, 2])
     mm = 0
     for c in range(m):
         q = cand[c]
@@ -855,18 +850,7 @@ def clip_ears(points, normals, loop_off, loop_verts, triangles, vt_off, vt, cand
                         break
                 if dup:
                     continue
-                nx, ny, nz = normals[b, 0], normals[b, 1], normals[b, 2]
-                if abs(nx) < 0.9:
-                    ux, uy, uz = 0.0, nz, -ny
-                else:
-                    ux, uy, uz = -nz, 0.0, nx
-                s = np.sqrt(ux * ux + uy * uy + uz * uz)
-                ux /= s
-                uy /= s
-                uz /= s
-                vx = ny * uz - nz * uy
-                vy = nz * ux - nx * uz
-                vz = nx * uy - ny * ux
+                ux, uy, uz, vx, vy, vz = _tangent(normals[b, 0], normals[b, 1], normals[b, 2])
                 ax = (points[a, 0] - points[b, 0]) * ux + (points[a, 1] - points[b, 1]) * uy \
                     + (points[a, 2] - points[b, 2]) * uz
                 ay = (points[a, 0] - points[b, 0]) * vx + (points[a, 1] - points[b, 1]) * vy \
