@@ -16,9 +16,15 @@ from vtkmodules.vtkIOPLY import vtkPLYReader, vtkPLYWriter
 from vtkmodules.vtkIOXML import vtkXMLPolyDataReader, vtkXMLPolyDataWriter
 
 from fancloud_vtk import Cancelled, FanCloud, FanCloudInputError, build_fans
-from fancloud_vtk.algorithms import FanCloudFilter, fancloud_to_vtk, is_fancloud, run
+from fancloud_vtk.algorithms import (
+    FanCloudFilter,
+    FanCloudMeshFilter,
+    fancloud_to_vtk,
+    is_fancloud,
+    run,
+)
 from fancloud_vtk.algorithms.convert import points_of
-from fancloud_vtk.params import FAN_PARAMS
+from fancloud_vtk.params import FAN_PARAMS, MESH_PARAMS
 
 N = 2000
 
@@ -156,9 +162,16 @@ def _other_value(param):
     return param.range[0] if param.default != param.range[0] else param.range[1]
 
 
-@pytest.mark.parametrize("param", FAN_PARAMS, ids=lambda p: p.name)
-def test_setters_call_modified_only_on_change(param):
-    fans = FanCloudFilter()
+#: every filter with its parameter table: the setter test runs on each
+FILTER_PARAMS = [(FanCloudFilter, p) for p in FAN_PARAMS] + [
+    (FanCloudMeshFilter, p) for p in FAN_PARAMS + MESH_PARAMS
+]
+
+
+@pytest.mark.parametrize(("cls", "param"), FILTER_PARAMS,
+                         ids=[f"{c.__name__}-{p.name}" for c, p in FILTER_PARAMS])
+def test_setters_call_modified_only_on_change(cls, param):
+    fans = cls()
     setter = getattr(fans, "Set" + param.vtk_name)
     getter = getattr(fans, "Get" + param.vtk_name)
     assert getter() == param.default

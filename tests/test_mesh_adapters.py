@@ -150,34 +150,7 @@ def test_input_is_unchanged(cloud):
         assert poly.GetMTime() == mtime
 
 
-def _other_value(param):
-    """A valid value different from the default."""
-    if param.kind == "bool":
-        return not param.default
-    if param.kind == "choice":
-        return next(c for c in param.choices if c != param.default)
-    return param.range[0] if param.default != param.range[0] else param.range[1]
-
-
-@pytest.mark.parametrize("param", FAN_PARAMS + MESH_PARAMS, ids=lambda p: p.name)
-def test_setters_call_modified_only_on_change(param):
-    mesh = FanCloudMeshFilter()
-    setter = getattr(mesh, "Set" + param.vtk_name)
-    getter = getattr(mesh, "Get" + param.vtk_name)
-    assert getter() == param.default
-    t0 = mesh.GetMTime()
-    setter(param.default)
-    setattr(mesh, param.name, param.default)
-    assert mesh.GetMTime() == t0, "same value: not modified"
-    value = _other_value(param)
-    setter(value)
-    t1 = mesh.GetMTime()
-    assert t1 > t0
-    assert getter() == value and getattr(mesh, param.name) == value
-    setattr(mesh, param.name, value)
-    assert mesh.GetMTime() == t1
-    setattr(mesh, param.name, param.default)
-    assert mesh.GetMTime() > t1
+# (the setter test of every filter, this one included, is in test_algorithms.py)
 
 
 def test_bad_parameter_values_are_rejected_without_modifying():
