@@ -6,9 +6,11 @@ PyVista accessor ``dataset.fancloud`` and the ``fancloud`` command forward to
 those.
 """
 
+from .core.entropy import Entropy, entropy, fan_cloud_of_mesh
 from .core.fans import Cancelled, DuplicatePointsWarning, build_fans
 from .core.mesh import TriangleMesh, fan_cloud_to_mesh
 from .core.model import FanCloud, find_color_array
+from .core.reduction import Hierarchy, hierarchy, reduce
 from .core.validation import FanCloudInputError
 
 __version__ = "0.1.0"
@@ -16,10 +18,16 @@ __version__ = "0.1.0"
 __all__ = [
     "Cancelled",
     "DuplicatePointsWarning",
+    "Entropy",
     "FanCloud",
     "FanCloudInputError",
+    "Hierarchy",
     "TriangleMesh",
     "build_fans",
+    "entropy",
+    "fan_cloud_of_mesh",
     "fan_cloud_to_mesh",
     "find_color_array",
+    "hierarchy",
+    "reduce",
 ]

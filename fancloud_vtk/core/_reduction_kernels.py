@@ -1,0 +1,540 @@
+"""Numba kernels of the reduction (paper section 5) and the levels of detail (section 6).
+
+The reduction keeps the fans in a fixed-width table ``R[p, :rlen[p]]`` and,
+for every point, the list ``IN[p, :nin[p]]`` of the points whose fans
+contain it (``over[p]``: that list overflowed and is found by a scan). A
+removal re-forms exactly the fans that contained the removed point, from
+their own ring and the removed point's ring (no neighbour search), as the
+local Delaunay ring in their tangent plane; the entropies of the points
+whose terms change are recomputed and their keys updated in an indexed
+binary heap (ties broken by the smaller index, so the order is
+deterministic). Every removal is logged so that the levels of detail can be
+walked back: the removed point's ring and local frame coordinates, and the
+old rings of the fans it changed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ._entropy_kernels import point_cc, point_terms
+from ._mesh_kernels import _hull_ring, _tangent
+
+METHOD_ENTROPY = 0
+METHOD_ERROR = 1
+INF = np.inf
+
+
+# -- indexed binary heap (key, index) ------------------------------------------------
+
+
+@njit(cache=True)
+def _less(key, a, b):
+    return key[a] < key[b] or (key[a] == key[b] and a < b)
+
+
+@njit(cache=True)
+def _sift_up(heap, hpos, key, i):
+    x = heap[i]
+    while i > 0:
+        parent = (i - 1) >> 1
+        y = heap[parent]
+        if not _less(key, x, y):
+            break
+        heap[i] = y
+        hpos[y] = i
+        i = parent
+    heap[i] = x
+    hpos[x] = i
+
+
+@njit(cache=True)
+def _sift_down(heap, hpos, key, i, size):
+    x = heap[i]
+    while True:
+        c = 2 * i + 1
+        if c >= size:
+            break
+        if c + 1 < size and _less(key, heap[c + 1], heap[c]):
+            c += 1
+        y = heap[c]
+        if not _less(key, y, x):
+            break
+        heap[i] = y
+        hpos[y] = i
+        i = c
+    heap[i] = x
+    hpos[x] = i
+
+
+@njit(cache=True)
+def _heap_update(heap, hpos, key, x, value, size):
+    """Set key[x] = value and restore the heap (x must be in the heap)."""
+    old = key[x]
+    key[x] = value
+    i = hpos[x]
+    if value < old:
+        _sift_up(heap, hpos, key, i)
+    else:
+        _sift_down(heap, hpos, key, i, size)
+
+
+# -- local frames -------------------------------------------------------------------
+
+
+@njit(cache=True)
+def local_frame(points, nbrs, k, fnx, fny, fnz):
+    """(origin, normal, tangent) of a fan ring: 9 floats.
+
+    Origin: the centroid of the ring; normal: the Newell normal of the ring
+    polygon (oriented by the ring's counter-clockwise order); tangent: the
+    direction to the first ring point in that plane. Falls back to the given
+    normal when the ring is degenerate.
+    """
+    ox = 0.0
+    oy = 0.0
+    oz = 0.0
+    for a in range(k):
+        q = nbrs[a]
+        ox += points[q, 0]
+        oy += points[q, 1]
+        oz += points[q, 2]
+    ox /= k
+    oy /= k
+    oz /= k
+    nx = 0.0
+    ny = 0.0
+    nz = 0.0
+    for a in range(k):
+        q = nbrs[a]
+        r = nbrs[(a + 1) % k]
+        ax = points[q, 0] - ox
+        ay = points[q, 1] - oy
+        az = points[q, 2] - oz
+        bx = points[r, 0] - ox
+        by = points[r, 1] - oy
+        bz = points[r, 2] - oz
+        nx += ay * bz - az * by
+        ny += az * bx - ax * bz
+        nz += ax * by - ay * bx
+    s = np.sqrt(nx * nx + ny * ny + nz * nz)
+    scale = 0.0
+    for a in range(k):
+        q = nbrs[a]
+        dx = points[q, 0] - ox
+        dy = points[q, 1] - oy
+        dz = points[q, 2] - oz
+        scale += dx * dx + dy * dy + dz * dz
+    if s <= 1e-12 * scale or s == 0.0:
+        nx, ny, nz = fnx, fny, fnz
+        s = np.sqrt(nx * nx + ny * ny + nz * nz)
+    nx /= s
+    ny /= s
+    nz /= s
+    q = nbrs[0]
+    tx = points[q, 0] - ox
+    ty = points[q, 1] - oy
+    tz = points[q, 2] - oz
+    d = tx * nx + ty * ny + tz * nz
+    tx -= d * nx
+    ty -= d * ny
+    tz -= d * nz
+    t = np.sqrt(tx * tx + ty * ty + tz * tz)
+    if t <= 1e-9 * np.sqrt(scale / k) or t == 0.0:
+        tx, ty, tz, _, _, _ = _tangent(nx, ny, nz)
+    else:
+        tx /= t
+        ty /= t
+        tz /= t
+    return ox, oy, oz, nx, ny, nz, tx, ty, tz
+
+
+@njit(cache=True)
+def _to_frame(fr, x, y, z):
+    """Coordinates of the vector (x, y, z) in the frame (tangent, normal x tangent, normal)."""
+    nx, ny, nz, tx, ty, tz = fr[3], fr[4], fr[5], fr[6], fr[7], fr[8]
+    bx = ny * tz - nz * ty
+    by = nz * tx - nx * tz
+    bz = nx * ty - ny * tx
+    return (x * tx + y * ty + z * tz, x * bx + y * by + z * bz, x * nx + y * ny + z * nz)
+
+
+@njit(cache=True)
+def _from_frame(fr, a, b, c):
+    nx, ny, nz, tx, ty, tz = fr[3], fr[4], fr[5], fr[6], fr[7], fr[8]
+    bx = ny * tz - nz * ty
+    by = nz * tx - nx * tz
+    bz = nx * ty - ny * tx
+    return (a * tx + b * bx + c * nx, a * ty + b * by + c * ny, a * tz + b * bz + c * nz)
+
+
+@njit(cache=True)
+def _error_cost(points, normals, R, rlen, x):
+    """Distance of x to the plane of its ring (the surface change if x goes)."""
+    k = rlen[x]
+    if k == 0:
+        return 0.0
+    fr = local_frame(points, R[x], k, normals[x, 0], normals[x, 1], normals[x, 2])
+    return abs((points[x, 0] - fr[0]) * fr[3] + (points[x, 1] - fr[1]) * fr[4]
+               + (points[x, 2] - fr[2]) * fr[5])
+
+
+# -- re-forming a fan -----------------------------------------------------------------
+
+
+@njit(cache=True)
+def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, stamp, tag, out):
+    """x's new ring without p, from x's ring and p's: written to ``out``.
+
+    The local Delaunay ring in x's tangent plane: the points whose
+    inversions lie on the convex hull of all inversions (see
+    ``_mesh_kernels.delaunay_rings``). A closed fan whose candidates no longer
+    surround x becomes open. Returns (size, open), size -1 if no fan can be
+    formed.
+    """
+    m = 0
+    stamp[x] = tag
+    stamp[p] = tag
+    for src in (x, p):
+        for a in range(rlen[src]):
+            s = R[src, a]
+            if stamp[s] == tag:
+                continue
+            stamp[s] = tag
+            cand[m] = s
+            m += 1
+    ux, uy, uz, vx, vy, vz = _tangent(normals[x, 0], normals[x, 1], normals[x, 2])
+    mm = 0
+    for c in range(m):
+        q = cand[c]
+        dx = points[q, 0] - points[x, 0]
+        dy = points[q, 1] - points[x, 1]
+        dz = points[q, 2] - points[x, 2]
+        u = dx * ux + dy * uy + dz * uz
+        v = dx * vx + dy * vy + dz * vz
+        r2 = u * u + v * v
+        if r2 <= 0.0:
+            continue
+        cand[mm] = q
+        xs[mm] = u / r2
+        ys[mm] = v / r2
+        mm += 1
+    width = R.shape[1]
+    if not ropen[x] and mm >= 3:
+        h = _hull_ring(xs, ys, mm, cand, order, hull, True)
+        if 3 <= h <= width:
+            first = 0
+            for t in range(1, h):
+                if cand[hull[t]] < cand[hull[first]]:
+                    first = t
+            for t in range(h):
+                out[t] = cand[hull[(first + t) % h]]
+            return h, False
+    # open: the hull of the inversions and of x itself (nudged outward)
+    if mm < 2:
+        return -1, True
+    sx = 0.0
+    sy = 0.0
+    scale = 0.0
+    for c in range(mm):
+        sx += xs[c]
+        sy += ys[c]
+        scale = max(scale, abs(xs[c]) + abs(ys[c]))
+    s = np.sqrt(sx * sx + sy * sy)
+    cand[mm] = -1
+    if s > 0.0:
+        xs[mm] = -1e-9 * scale * sx / s
+        ys[mm] = -1e-9 * scale * sy / s
+    else:
+        xs[mm] = 0.0
+        ys[mm] = 0.0
+    h = _hull_ring(xs, ys, mm + 1, cand, order, hull, False)
+    at = -1
+    for t in range(h):
+        if cand[hull[t]] == -1:
+            at = t
+    if at < 0 or h < 3 or h - 1 > width:
+        return -1, True
+    for t in range(h - 1):
+        out[t] = cand[hull[(at + 1 + t) % h]]
+    return h - 1, True
+
+
+# -- in-lists (the fans that contain a point) ----------------------------------------
+
+
+@njit(cache=True)
+def _in_add(IN, nin, over, y, x):
+    if over[y]:
+        return
+    if nin[y] == IN.shape[1]:
+        over[y] = True
+        return
+    IN[y, nin[y]] = x
+    nin[y] += 1
+
+
+@njit(cache=True)
+def _in_remove(IN, nin, over, y, x):
+    if over[y]:
+        return
+    for i in range(nin[y]):
+        if IN[y, i] == x:
+            nin[y] -= 1
+            IN[y, i] = IN[y, nin[y]]
+            return
+
+
+@njit(cache=True)
+def build_in_lists(R, rlen, width):
+    n = R.shape[0]
+    IN = np.empty((n, width), np.int32)
+    nin = np.zeros(n, np.int32)
+    over = np.zeros(n, np.bool_)
+    for x in range(n):
+        for a in range(rlen[x]):
+            _in_add(IN, nin, over, R[x, a], x)
+    return IN, nin, over
+
+
+@njit(cache=True)
+def _grow(arr, need):
+    if need <= arr.shape[0]:
+        return arr
+    new = np.empty(max(need, 2 * arr.shape[0]), arr.dtype)
+    new[: arr.shape[0]] = arr
+    return new
+
+
+# -- the reduction -----------------------------------------------------------------
+
+
+@njit(cache=True)
+def _key(points, normals, R, rlen, dist, curv, cc, col, w, method, x):
+    if method == METHOD_ERROR:
+        return _error_cost(points, normals, R, rlen, x)
+    return w[0] * dist[x] + w[1] * curv[x] + w[2] * cc[x] + w[3] * col[x]
+
+
+@njit(cache=True)
+def init_state(points, normals, colors, R, rlen, w, dbar, method):
+    """Terms, keys and the heap of every point: (dist, curv, cc, col, key, heap, hpos)."""
+    n = points.shape[0]
+    dist = np.zeros(n)
+    curv = np.zeros(n)
+    cc = np.zeros(n)
+    col = np.zeros(n)
+    for x in range(n):
+        dist[x], curv[x], col[x] = point_terms(points, normals, colors, x, R[x], rlen[x], dbar)
+    for x in range(n):
+        cc[x] = point_cc(points, curv, x, R[x], rlen[x], dbar)
+    key = np.empty(n)
+    for x in range(n):
+        key[x] = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, x)
+        if rlen[x] == 0:
+            key[x] = INF  # an isolated point has no fan to re-form: it stays
+    heap = np.arange(n).astype(np.int64)
+    hpos = np.arange(n).astype(np.int64)
+    for i in range(n // 2 - 1, -1, -1):
+        _sift_down(heap, hpos, key, i, n)
+    return dist, curv, cc, col, key, heap, hpos
+
+
+@njit(cache=True)
+def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, active, IN, nin,
+                 over, dist, curv, cc, col, key, heap, hpos, counters, max_steps, target,
+                 order, detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open,
+                 ent_off, ent_ring, stamp):
+    """Remove up to ``max_steps`` points (never below ``target`` active ones).
+
+    ``counters``: [heap size, removals, log entries, ring entries of the log,
+    removed-ring entries, stamp tag]. Returns the (possibly grown) log arrays;
+    the removal stops early when every remaining point is blocked (its key
+    is inf: no fan could be re-formed without it).
+    """
+    n = points.shape[0]
+    width = R.shape[1]
+    cap = 4 * width + 8
+    cand = np.empty(cap, np.int64)
+    xs = np.empty(cap)
+    ys = np.empty(cap)
+    ordr = np.empty(cap, np.int64)
+    hull = np.empty(cap + 1, np.int64)
+    aff = np.empty(n if n < 4096 else 4096, np.int64)
+    new_rings = np.empty((aff.shape[0], width), np.int32)
+    new_len = np.empty(aff.shape[0], np.int64)
+    new_open = np.empty(aff.shape[0], np.bool_)
+    upd = np.empty(aff.shape[0] * (IN.shape[1] + 1) + 1, np.int64)
+    size = counters[0]
+    steps = 0
+    while steps < max_steps and size > target:
+        p = heap[0]
+        if key[p] == INF:
+            break
+        # the fans that contain p
+        n_aff = 0
+        if over[p]:
+            for x in range(n):
+                if active[x] and x != p:
+                    for a in range(rlen[x]):
+                        if R[x, a] == p:
+                            if n_aff < aff.shape[0]:
+                                aff[n_aff] = x
+                                n_aff += 1
+                            break
+        else:
+            for i in range(nin[p]):
+                aff[n_aff] = IN[p, i]
+                n_aff += 1
+        # re-form them all (or none)
+        ok = True
+        for i in range(n_aff):
+            x = aff[i]
+            counters[5] += 1
+            h, op = _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, ordr, hull,
+                            stamp, counters[5], new_rings[i])
+            if h < 0:
+                ok = False
+                break
+            new_len[i] = h
+            new_open[i] = op
+        if not ok:
+            _heap_update(heap, hpos, key, p, INF, size)
+            continue
+        # log: the removal, p's ring and frame, the old rings of the fans changed
+        r = counters[1]
+        k = rlen[p]
+        order[r] = p
+        fr = local_frame(points, R[p], k, normals[p, 0], normals[p, 1], normals[p, 2])
+        d = _to_frame(fr, points[p, 0] - fr[0], points[p, 1] - fr[1], points[p, 2] - fr[2])
+        e = _to_frame(fr, normals[p, 0], normals[p, 1], normals[p, 2])
+        for c in range(3):
+            detail[r, c] = d[c]
+            detail[r, 3 + c] = e[c]
+        rem_ring = _grow(rem_ring, counters[4] + k)
+        for a in range(k):
+            rem_ring[counters[4] + a] = R[p, a]
+        counters[4] += k
+        rem_off[r + 1] = counters[4]
+        rem_open[r] = ropen[p]
+        ent_x = _grow(ent_x, counters[2] + n_aff)
+        ent_open = _grow(ent_open, counters[2] + n_aff)
+        ent_off = _grow(ent_off, counters[2] + n_aff + 1)
+        for i in range(n_aff):
+            x = aff[i]
+            e_i = counters[2]
+            ent_x[e_i] = x
+            ent_open[e_i] = ropen[x]
+            ent_ring = _grow(ent_ring, counters[3] + rlen[x])
+            for a in range(rlen[x]):
+                ent_ring[counters[3] + a] = R[x, a]
+            counters[3] += rlen[x]
+            counters[2] += 1
+            ent_off[counters[2]] = counters[3]
+        log_off[r + 1] = counters[2]
+        counters[1] += 1
+        # remove p: out of the heap and of its neighbours' in-lists
+        active[p] = False
+        last = heap[size - 1]
+        size -= 1
+        if size > 0 and last != p:
+            heap[0] = last
+            hpos[last] = 0
+            _sift_down(heap, hpos, key, 0, size)
+        hpos[p] = -1
+        for a in range(k):
+            _in_remove(IN, nin, over, R[p, a], p)
+        # the new rings
+        for i in range(n_aff):
+            x = aff[i]
+            for a in range(rlen[x]):
+                _in_remove(IN, nin, over, R[x, a], x)
+            rlen[x] = new_len[i]
+            ropen[x] = new_open[i]
+            for a in range(new_len[i]):
+                R[x, a] = new_rings[i, a]
+                _in_add(IN, nin, over, R[x, a], x)
+        # entropies: the terms of the changed fans, M_cc also of the fans around them
+        counters[5] += 1
+        tag = counters[5]
+        n_upd = 0
+        for i in range(n_aff):
+            x = aff[i]
+            dist[x], curv[x], col[x] = point_terms(points, normals, colors, x, R[x], rlen[x],
+                                                   dbar)
+            if stamp[x] != tag:
+                stamp[x] = tag
+                upd[n_upd] = x
+                n_upd += 1
+        if method == METHOD_ENTROPY:
+            for i in range(n_aff):
+                x = aff[i]
+                if over[x]:
+                    continue
+                for j in range(nin[x]):
+                    y = IN[x, j]
+                    if stamp[y] != tag and n_upd < upd.shape[0]:
+                        stamp[y] = tag
+                        upd[n_upd] = y
+                        n_upd += 1
+        for i in range(n_upd):
+            y = upd[i]
+            if not active[y]:
+                continue
+            cc[y] = point_cc(points, curv, y, R[y], rlen[y], dbar)
+            value = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, y)
+            if rlen[y] == 0:
+                value = INF
+            _heap_update(heap, hpos, key, y, value, size)
+        steps += 1
+    counters[0] = size
+    return rem_ring, ent_x, ent_open, ent_off, ent_ring
+
+
+# -- levels of detail -----------------------------------------------------------------
+
+
+@njit(cache=True)
+def undo(R, rlen, ropen, active, order, rem_off, rem_ring, rem_open, log_off, ent_x,
+         ent_open, ent_off, ent_ring, r_from, r_to):
+    """Undo the removals r_from - 1 down to r_to: reinsert the points, restore the fans."""
+    for r in range(r_from - 1, r_to - 1, -1):
+        p = order[r]
+        active[p] = True
+        k = rem_off[r + 1] - rem_off[r]
+        for a in range(k):
+            R[p, a] = rem_ring[rem_off[r] + a]
+        rlen[p] = k
+        ropen[p] = rem_open[r]
+        for e in range(log_off[r], log_off[r + 1]):
+            x = ent_x[e]
+            k = ent_off[e + 1] - ent_off[e]
+            for a in range(k):
+                R[x, a] = ent_ring[ent_off[e] + a]
+            rlen[x] = k
+            ropen[x] = ent_open[e]
+
+
+@njit(cache=True)
+def place(points, normals, order, rem_off, rem_ring, detail, r_from, r_to, moved):
+    """Positions (and normals) of the points removed r_from - 1 down to r_to from their detail.
+
+    Each point is put back in the local frame of its ring at removal time,
+    taken from the ring's current positions; ``moved[p]`` is set.
+    """
+    for r in range(r_from - 1, r_to - 1, -1):
+        p = order[r]
+        nb = rem_ring[rem_off[r]:rem_off[r + 1]]
+        fr = local_frame(points, nb, len(nb), normals[p, 0], normals[p, 1], normals[p, 2])
+        d = _from_frame(fr, detail[r, 0], detail[r, 1], detail[r, 2])
+        e = _from_frame(fr, detail[r, 3], detail[r, 4], detail[r, 5])
+        points[p, 0] = fr[0] + d[0]
+        points[p, 1] = fr[1] + d[1]
+        points[p, 2] = fr[2] + d[2]
+        s = np.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+        if s > 0.0:
+            normals[p, 0] = e[0] / s
+            normals[p, 1] = e[1] / s
+            normals[p, 2] = e[2] / s
+        moved[p] = True

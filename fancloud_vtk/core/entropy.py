@@ -1,0 +1,272 @@
+"""Entropy of the points of a fan cloud or a triangle mesh (paper section 5).
+
+For a point p with fan neighbours q_1..q_k (distances d_j, unit normals n,
+n_j, colours c, c_j):
+
+* ``M_dist = (1/k) sum d_j``
+* ``M_curv = (1/k) sum |n_j - n| / d_j``
+* ``M_cc   = (1/k) sum |M_curv(q_j) - M_curv(p)| / d_j``
+* ``M_col  = (1/k) sum |c_j - c| / d_j``
+* ``M = a1 M_dist + a2 M_curv + a3 M_cc + a4 M_col``
+
+made scale-invariant with the mean neighbour distance ``dbar``: ``M_dist``
+divided by ``dbar``, ``M_curv`` and ``M_col`` multiplied by ``dbar``,
+``M_cc`` by ``dbar**2`` (see ``docs/entropy.md``). On a triangle mesh a
+vertex's one-ring is its fan (:func:`fan_cloud_of_mesh`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _entropy_kernels as EK
+from .model import FanCloud, find_color_array
+from .validation import FanCloudInputError, as_normals, as_points
+
+#: the paper's weights for shape features (Figure 9b)
+DEFAULT_WEIGHTS = (1.0, 1.0, 50.0, 0.0)
+
+
+@dataclass(eq=False)
+class Entropy:
+    """The entropy of every point and its four terms (all scale-invariant).
+
+    Attributes
+    ----------
+    total : numpy.ndarray
+        ``(n,)`` ``M = a1 dist + a2 curv + a3 cc + a4 col``.
+    dist, curv, cc, col : numpy.ndarray
+        ``(n,)`` the terms ``M_dist``, ``M_curv``, ``M_cc``, ``M_col`` on
+        their own (``col`` is 0 without colours).
+    weights : tuple of float
+        ``(a1, a2, a3, a4)``.
+    mean_distance : float
+        ``dbar``, the mean distance of a point to its fan neighbours.
+    """
+
+    total: np.ndarray
+    dist: np.ndarray
+    curv: np.ndarray
+    cc: np.ndarray
+    col: np.ndarray
+    weights: tuple
+    mean_distance: float
+
+    def as_dict(self) -> dict[str, np.ndarray]:
+        """Point arrays by name: ``entropy``, ``entropy_dist``, ``_curv``, ``_cc``, ``_col``."""
+        return {
+            "entropy": self.total,
+            "entropy_dist": self.dist,
+            "entropy_curv": self.curv,
+            "entropy_cc": self.cc,
+            "entropy_col": self.col,
+        }
+
+
+def check_weights(weights) -> tuple[float, float, float, float]:
+    """``(a1, a2, a3, a4)`` as floats: four finite, non-negative numbers, not all 0."""
+    try:
+        w = np.asarray(weights, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"weights must be four numbers (a1, a2, a3, a4), got {weights!r}") from exc
+    if w.shape != (4,):
+        raise ValueError(
+            f"weights must be four numbers (a1, a2, a3, a4) for distance, curvature, "
+            f"curvature change and colour, got {w.size} ({weights!r})"
+        )
+    if not np.isfinite(w).all() or (w < 0).any():
+        raise ValueError(f"weights must be finite and non-negative, got {tuple(w.tolist())}")
+    if not (w > 0).any():
+        raise ValueError("weights must not all be 0")
+    return tuple(float(x) for x in w)
+
+
+def as_colors(colors, point_data: dict, n: int) -> np.ndarray | None:
+    """RGB colours as an ``(n, 3)`` float64 array in [0, 1], or ``None``.
+
+    ``colors``: ``None`` (the point array found by
+    :func:`~fancloud_vtk.find_color_array`, if any), the name of a point
+    array, or an ``(n, 3)`` / ``(n, 4)`` array, uint8 (0..255) or floats
+    (in [0, 1]; alpha is ignored).
+    """
+    if colors is None:
+        name = find_color_array(point_data)
+        if name is None:
+            return None
+        colors = point_data[name]
+    elif isinstance(colors, str):
+        try:
+            colors = point_data[find_color_array(point_data, colors)]
+        except KeyError as exc:
+            raise ValueError(str(exc.args[0])) from None
+    arr = np.asarray(colors)
+    if arr.dtype == object or arr.dtype.kind not in "biuf":
+        raise ValueError(f"colors must be a numeric (n, 3) or (n, 4) array, got dtype {arr.dtype}")
+    if arr.ndim != 2 or arr.shape[1] not in (3, 4):
+        raise ValueError(f"colors must have shape (n, 3) or (n, 4), got {arr.shape}")
+    if arr.shape[0] != n:
+        raise ValueError(f"colors has {arr.shape[0]} rows, expected {n} (one per point)")
+    rgb = np.array(arr[:, :3], dtype=np.float64)
+    if arr.dtype.kind in "iu" or (rgb.size and rgb.max() > 1.0 + 1e-9):
+        rgb /= 255.0
+    if not np.isfinite(rgb).all():
+        raise ValueError("colors contain NaN or infinite values")
+    return np.ascontiguousarray(rgb)
+
+
+def entropy(fancloud, weights=DEFAULT_WEIGHTS, colors=None) -> Entropy:
+    """The entropy of every point of a fan cloud or triangle mesh (section 5).
+
+    Parameters
+    ----------
+    fancloud : FanCloud or TriangleMesh
+        A fan cloud (from :func:`~fancloud_vtk.build_fans`), or a triangle
+        mesh whose vertices' one-rings are the fans.
+    weights : sequence of 4 float, default: (1, 1, 50, 0)
+        ``(a1, a2, a3, a4)`` of distance, curvature, curvature change and
+        colour (the paper uses (1, 0, 0, 0), (1, 1, 50, 0) and (1, 1, 50, 1)).
+    colors : None, str or numpy.ndarray, optional
+        The colours for ``M_col``: by default the point array named ``RGB``,
+        ``RGBA``, ``Colors``, ... if there is one; or a point array's name;
+        or an ``(n, 3)``/``(n, 4)`` array (uint8, or floats in [0, 1]).
+
+    Returns
+    -------
+    Entropy
+        ``total`` and the terms ``dist``, ``curv``, ``cc``, ``col``, each
+        ``(n,)`` and scale-invariant.
+
+    Raises
+    ------
+    ValueError
+        Weights that are not four non-negative numbers; a colour weight
+        without colours; colours of the wrong shape; an empty cloud.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fancloud_vtk import build_fans, entropy
+    >>> rng = np.random.default_rng(0)
+    >>> p = rng.normal(size=(2000, 3))
+    >>> p /= np.linalg.norm(p, axis=1)[:, None]
+    >>> e = entropy(build_fans(p))
+    >>> e.total.shape, bool(e.curv.std() < 0.5 * e.curv.mean())
+    ((2000,), True)
+    """
+    fc = as_fan_cloud(fancloud)
+    w = check_weights(weights)
+    rgb = as_colors(colors, fc.point_data, fc.n_points)
+    if w[3] > 0 and rgb is None:
+        raise ValueError(
+            "the colour weight a4 is > 0 but the input has no colours "
+            "(no RGB/RGBA/Colors point array; pass colors=)"
+        )
+    dbar = EK.mean_distance(fc.points, fc.offsets, fc.ring)
+    if not dbar > 0:
+        raise FanCloudInputError("the fans have no neighbours at a distance > 0: no entropy")
+    col_arr = rgb if rgb is not None else np.zeros((0, 3))
+    dist, curv, cc, col = EK.entropy_terms(fc.points, fc.normals, col_arr, fc.offsets, fc.ring,
+                                           dbar)
+    total = w[0] * dist + w[1] * curv + w[2] * cc + w[3] * col
+    return Entropy(total, dist, curv, cc, col, w, float(dbar))
+
+
+# -- triangle meshes as fan clouds -------------------------------------------------
+
+
+def as_fan_cloud(data) -> FanCloud:
+    """A :class:`FanCloud` as it is, or the fan cloud of a :class:`TriangleMesh`."""
+    from .mesh import TriangleMesh
+
+    if isinstance(data, FanCloud):
+        data.validate()
+        if data.n_points == 0:
+            raise ValueError("the fan cloud is empty")
+        return data
+    if isinstance(data, TriangleMesh):
+        return fan_cloud_of_mesh(data.points, data.triangles, normals=data.normals,
+                                 point_data=data.point_data)
+    raise TypeError(
+        f"expected a FanCloud (from build_fans) or a TriangleMesh, got {type(data).__name__}"
+    )
+
+
+def fan_cloud_of_mesh(points, triangles, *, normals=None, point_data=None) -> FanCloud:
+    """The fan cloud of a triangle mesh: every vertex's one-ring is its fan.
+
+    Rings follow the triangles counter-clockwise; a boundary vertex gets an
+    open fan; the normals are ``normals`` if given (unit vectors, one per
+    point), else the area-weighted triangle normals, so they follow the
+    mesh's orientation. A vertex whose triangles do not form one
+    fan (non-manifold) gets its neighbours sorted by angle around its
+    normal (closed). Vertices in no triangle get an empty ring.
+
+    Raises
+    ------
+    ValueError
+        Points that are not ``(n, 3)`` finite numbers, triangles that are
+        not ``(m, 3)`` integers in range, or no triangles at all.
+    """
+    from .mesh_stats import _as_triangles
+    from .validation import check_point_data
+
+    pts = as_points(points)
+    n = len(pts)
+    tri = _as_triangles(triangles, n)
+    if len(tri) == 0:
+        raise ValueError("the mesh has no triangles: no one-rings to take as fans")
+    tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])]
+    pdata = check_point_data(point_data, n)
+    if normals is not None:
+        normals = as_normals(normals, n)
+    else:
+        normals = _area_normals(pts, tri)
+    offsets, ring, is_open, ok = EK.one_rings(np.ascontiguousarray(tri, np.int64), n)
+    if not ok.all():
+        offsets, ring, is_open = _sorted_rings(pts, normals, tri, offsets, ring, is_open, ok)
+    return FanCloud(pts, offsets, ring, normals, is_open, None, pdata,
+                    {"source": "triangle mesh", "triangles": int(len(tri))})
+
+
+def _area_normals(pts, tri):
+    a, b, c = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
+    face_n = np.cross(b - a, c - a)  # length: twice the area
+    normals = np.zeros((len(pts), 3))
+    for col in range(3):
+        np.add.at(normals, tri[:, col], face_n)
+    length = np.linalg.norm(normals, axis=1)
+    flat = length <= 0
+    normals[flat] = (0.0, 0.0, 1.0)
+    length[flat] = 1.0
+    return normals / length[:, None]
+
+
+def _sorted_rings(pts, normals, tri, offsets, ring, is_open, ok):
+    """Rings of the non-manifold vertices replaced by their neighbours sorted by angle."""
+    edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    edges = np.concatenate([edges, edges[:, ::-1]])
+    order = np.lexsort((edges[:, 1], edges[:, 0]))
+    edges = edges[order]
+    keep = np.ones(len(edges), bool)
+    keep[1:] = np.any(edges[1:] != edges[:-1], axis=1)
+    edges = edges[keep]
+    starts = np.searchsorted(edges[:, 0], np.arange(len(pts) + 1))
+    rings = [ring[offsets[v]:offsets[v + 1]] for v in range(len(pts))]
+    opens = is_open.copy()
+    for v in np.flatnonzero(~ok):
+        nb = edges[starts[v]:starts[v + 1], 1]
+        nrm = normals[v]
+        u = np.cross(nrm, [1.0, 0.0, 0.0])
+        if np.linalg.norm(u) < 0.5:
+            u = np.cross(nrm, [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        w = np.cross(nrm, u)
+        d = pts[nb] - pts[v]
+        rings[v] = nb[np.argsort(np.arctan2(d @ w, d @ u), kind="stable")]
+        opens[v] = False
+    sizes = np.array([len(r) for r in rings], np.int64)
+    new_off = np.zeros(len(pts) + 1, np.int64)
+    np.cumsum(sizes, out=new_off[1:])
+    return new_off, np.concatenate(rings).astype(np.int64), opens

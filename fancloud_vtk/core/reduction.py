@@ -1,0 +1,633 @@
+"""Reduction by entropy (paper section 5) and the levels of detail it gives (section 6).
+
+:func:`reduce` removes the point of lowest entropy again and again; the fans
+that contained it are re-formed from the points that remain (locally, from
+their own ring and the removed point's ring: no neighbour search), the
+entropies of the points around them are recomputed, and a priority queue
+(an indexed binary heap in a numba kernel) gives the next point. Every
+removal is recorded in a :class:`Hierarchy`: the removal order, each removed
+point's ring and its position in the local frame of that ring, and the
+rings its removal changed, so that any level, coarser or finer, can be
+recovered, edited coarse levels refined with their detail, and a region of
+interest refined selectively.
+"""
+
+from __future__ import annotations
+
+import numbers
+
+import numpy as np
+
+from . import _reduction_kernels as RK
+from ._entropy_kernels import mean_distance
+from .entropy import DEFAULT_WEIGHTS, as_colors, as_fan_cloud, check_weights
+from .fans import Cancelled
+from .model import FanCloud
+from .validation import FanCloudInputError
+
+METHODS = {"entropy": RK.METHOD_ENTROPY, "error": RK.METHOD_ERROR}
+
+#: the smallest fan cloud a reduction may leave
+MIN_POINTS = 4
+#: columns of the fan table during the reduction (rings may grow a little)
+MIN_WIDTH = 24
+#: columns of the in-lists (points whose fans contain a point); past that a scan
+IN_WIDTH = 32
+#: name of the point array mapping every output point to its input point
+ORIGINAL_ID = "original_id"
+
+_HIER_ARRAYS = ("order", "rem_off", "rem_ring", "rem_open", "detail", "log_off", "ent_x",
+                "ent_open", "ent_off", "ent_ring", "coarse_off", "coarse_ring", "coarse_open",
+                "original_id")
+
+
+def _target(n: int, n_points, keep) -> int:
+    """The number of points to keep, from exactly one of ``n_points`` and ``keep``."""
+    if (n_points is None) == (keep is None):
+        raise ValueError("give exactly one of n_points (a count) and keep (a fraction in (0, 1])")
+    if keep is not None:
+        if isinstance(keep, bool) or not isinstance(keep, numbers.Real) or not 0 < keep <= 1:
+            raise ValueError(f"keep must be a fraction in (0, 1], got {keep!r}")
+        n_points = int(round(float(keep) * n))
+    if isinstance(n_points, bool) or not isinstance(n_points, numbers.Integral):
+        raise ValueError(f"n_points must be an integer, got {n_points!r}")
+    n_points = int(n_points)
+    if n_points > n:
+        raise ValueError(f"n_points ({n_points}) is larger than the cloud ({n} points)")
+    if n_points < MIN_POINTS:
+        raise ValueError(
+            f"cannot reduce to {n_points} points: a fan cloud needs at least {MIN_POINTS}"
+        )
+    return n_points
+
+
+def _report(progress, fraction, message):
+    if progress is not None and progress(float(fraction), message):
+        raise Cancelled("the reduction was cancelled")
+
+
+def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entropy", colors=None,
+              progress=None) -> Hierarchy:
+    """The removal hierarchy of a fan cloud or triangle mesh, down to ``n_points``.
+
+    Parameters
+    ----------
+    fancloud : FanCloud or TriangleMesh
+        A fan cloud (its rings are used as they are), or a triangle mesh
+        (its vertices' one-rings are the fans).
+    n_points : int, optional
+        The coarsest level to compute. Default: as far as the removal goes
+        (at least 4 points stay).
+    weights : sequence of 4 float, default: (1, 1, 50, 0)
+        Entropy weights (see :func:`~fancloud_vtk.entropy`).
+    method : {'entropy', 'error'}, default: 'entropy'
+        ``'entropy'`` removes the point of lowest entropy; ``'error'`` the
+        point whose removal changes the surface least (its distance to the
+        plane of its ring; the paper's Figure 10b).
+    colors : None, str or numpy.ndarray, optional
+        Colours for the colour term (see :func:`~fancloud_vtk.entropy`).
+    progress : callable, optional
+        ``progress(fraction, message)``; returning True cancels
+        (:class:`~fancloud_vtk.Cancelled`).
+
+    Returns
+    -------
+    Hierarchy
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fancloud_vtk import build_fans, hierarchy
+    >>> rng = np.random.default_rng(0)
+    >>> p = rng.normal(size=(2000, 3))
+    >>> p /= np.linalg.norm(p, axis=1)[:, None]
+    >>> h = hierarchy(build_fans(p), 200)
+    >>> h.level(500).n_points, h.level(2000).n_points
+    (500, 2000)
+    """
+    fc = as_fan_cloud(fancloud)
+    n = fc.n_points
+    target = MIN_POINTS if n_points is None else _target(n, n_points, None)
+    if method not in METHODS:
+        raise ValueError(f"method must be 'entropy' or 'error', got {method!r}")
+    w = check_weights(weights)
+    rgb = as_colors(colors, fc.point_data, n)
+    if method == "entropy" and w[3] > 0 and rgb is None:
+        raise ValueError(
+            "the colour weight a4 is > 0 but the input has no colours "
+            "(no RGB/RGBA/Colors point array; pass colors=)"
+        )
+    dbar = mean_distance(fc.points, fc.offsets, fc.ring)
+    if not dbar > 0:
+        raise FanCloudInputError("the fans have no neighbours at a distance > 0: nothing to reduce")
+    _report(progress, 0.0, "reduction: setting up")
+    # work in a spatially coherent order (the fan grid's cells in Morton order)
+    from .fans import _Grid
+
+    grid = _Grid(fc.points)
+    perm, rank = grid.order, grid.pos
+    pts = np.ascontiguousarray(fc.points[perm])
+    nrm = np.ascontiguousarray(fc.normals[perm])
+    col = np.ascontiguousarray(rgb[perm]) if rgb is not None else np.zeros((0, 3))
+    sizes = fc.fan_sizes[perm]
+    width = max(MIN_WIDTH, int(sizes.max(initial=0)) + 8)
+    R = np.zeros((n, width), np.int32)
+    rows = np.repeat(np.arange(n), sizes)
+    first = np.repeat(np.cumsum(sizes) - sizes, sizes)
+    src = _gather_rings(fc, perm)
+    R[rows, np.arange(len(rows)) - first] = rank[src]
+    rlen = sizes.astype(np.int64)
+    ropen = np.ascontiguousarray(fc.open[perm])
+    active = np.ones(n, bool)
+    IN, nin, over = RK.build_in_lists(R, rlen, IN_WIDTH)
+    dist, curv, cc, colt, key, heap, hpos = RK.init_state(pts, nrm, col, R, rlen, np.array(w),
+                                                          dbar, METHODS[method])
+    n_remove = n - target
+    order = np.empty(n_remove, np.int64)
+    detail = np.empty((n_remove, 6))
+    rem_off = np.zeros(n_remove + 1, np.int64)
+    rem_ring = np.empty(8 * n_remove + 16, np.int32)
+    rem_open = np.zeros(n_remove, bool)
+    log_off = np.zeros(n_remove + 1, np.int64)
+    ent_x = np.empty(8 * n_remove + 16, np.int32)
+    ent_open = np.empty(8 * n_remove + 16, bool)
+    ent_off = np.zeros(8 * n_remove + 17, np.int64)
+    ent_ring = np.empty(48 * n_remove + 64, np.int32)
+    stamp = np.zeros(n, np.int64)
+    counters = np.array([n, 0, 0, 0, 0, 0], np.int64)
+    chunk = max(1000, n_remove // 50)
+    while counters[1] < n_remove:
+        before = counters[1]
+        rem_ring, ent_x, ent_open, ent_off, ent_ring = RK.reduce_steps(
+            pts, nrm, col, np.array(w), dbar, METHODS[method], R, rlen, ropen, active, IN, nin,
+            over, dist, curv, cc, colt, key, heap, hpos, counters, chunk, target, order, detail,
+            rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off, ent_ring, stamp)
+        _report(progress, counters[1] / max(n_remove, 1), "reduction")
+        if counters[1] == before:
+            break  # every remaining point is blocked
+    r = int(counters[1])
+    if n_points is not None and r < n_remove:
+        raise FanCloudInputError(
+            f"the reduction stopped at {n - r} points: no remaining point can be removed "
+            f"without breaking a fan (asked for {target})"
+        )
+    # the coarsest level's fans, and everything renamed back to the input's indices
+    coarse_sizes = np.where(active, rlen, 0)
+    coarse_sizes_in = np.zeros(n, np.int64)
+    coarse_sizes_in[perm] = coarse_sizes
+    coarse_off = np.zeros(n + 1, np.int64)
+    np.cumsum(coarse_sizes_in, out=coarse_off[1:])
+    mask = np.arange(width)[None, :] < coarse_sizes[:, None]
+    table_in = np.zeros((n, width), np.int64)
+    table_in[perm] = perm[R.astype(np.int64)]
+    mask_in = np.zeros_like(mask)
+    mask_in[perm] = mask
+    coarse_ring = table_in[mask_in]
+    coarse_open = np.zeros(n, bool)
+    coarse_open[perm] = ropen
+    n_ent = int(counters[2])
+    h = Hierarchy(
+        source=fc,
+        order=perm[order[:r]],
+        rem_off=rem_off[: r + 1].copy(),
+        rem_ring=perm[rem_ring[: rem_off[r]]],
+        rem_open=rem_open[:r].copy(),
+        detail=detail[:r].copy(),
+        log_off=log_off[: r + 1].copy(),
+        ent_x=perm[ent_x[:n_ent]],
+        ent_open=ent_open[:n_ent].copy(),
+        ent_off=ent_off[: n_ent + 1].copy(),
+        ent_ring=perm[ent_ring[: ent_off[n_ent]]],
+        coarse_off=coarse_off,
+        coarse_ring=coarse_ring,
+        coarse_open=coarse_open,
+        weights=w,
+        method=method,
+    )
+    _report(progress, 1.0, "reduction: done")
+    return h
+
+
+def _gather_rings(fc: FanCloud, perm: np.ndarray) -> np.ndarray:
+    """The rings of the points in ``perm`` order, concatenated (input indices)."""
+    sizes = fc.fan_sizes[perm]
+    starts = np.repeat(fc.offsets[perm], sizes)
+    first = np.repeat(np.cumsum(sizes) - sizes, sizes)
+    return fc.ring[starts + np.arange(int(sizes.sum())) - first]
+
+
+def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, method="entropy",
+           colors=None, return_hierarchy=False, progress=None):
+    """Reduce a fan cloud (or triangle mesh) to ``n_points`` points by entropy (section 5).
+
+    Repeatedly removes the point of lowest entropy (or, with
+    ``method='error'``, the point whose removal changes the surface least),
+    re-forms the fans that contained it from the points that remain and
+    updates the entropies around it, until exactly ``n_points`` remain.
+
+    Parameters
+    ----------
+    fancloud : FanCloud or TriangleMesh
+        The input; a mesh's one-rings are its fans (the result is a fan
+        cloud either way: :func:`~fancloud_vtk.fan_cloud_to_mesh` makes it
+        a mesh again).
+    n_points : int, optional
+        Points to keep (at least 4, at most all).
+    keep : float, optional
+        Fraction of the points to keep, in (0, 1] (instead of ``n_points``).
+    weights : sequence of 4 float, default: (1, 1, 50, 0)
+        Entropy weights ``(a1, a2, a3, a4)``: distance, curvature, curvature
+        change, colour. (1, 0, 0, 0) gives an almost uniform result.
+    method : {'entropy', 'error'}, default: 'entropy'
+        What the next removal minimises.
+    colors : None, str or numpy.ndarray, optional
+        Colours for the colour term (default: the input's colour array).
+    return_hierarchy : bool, default: False
+        Also return the :class:`Hierarchy` of the removals.
+    progress : callable, optional
+        ``progress(fraction, message)``; returning True cancels.
+
+    Returns
+    -------
+    FanCloud or (FanCloud, Hierarchy)
+        The kept points with their re-formed fans, normals and point arrays,
+        and the point array ``original_id`` (the index of each kept point in
+        the input; composed with the input's own ``original_id`` if it has
+        one).
+
+    Raises
+    ------
+    ValueError
+        Neither or both of ``n_points`` and ``keep``; ``keep`` outside (0, 1];
+        ``n_points`` larger than the cloud or below 4; bad weights or colours.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fancloud_vtk import build_fans, reduce
+    >>> rng = np.random.default_rng(0)
+    >>> p = rng.normal(size=(5000, 3))
+    >>> p /= np.linalg.norm(p, axis=1)[:, None]
+    >>> small = reduce(build_fans(p), keep=0.176)
+    >>> small.n_points, small.point_data["original_id"][:3].tolist()  # doctest: +SKIP
+    (880, [...])
+    """
+    fc = as_fan_cloud(fancloud)
+    target = _target(fc.n_points, n_points, keep)
+    h = hierarchy(fc, target, weights=weights, method=method, colors=colors, progress=progress)
+    out = h.level(target)
+    return (out, h) if return_hierarchy else out
+
+
+class Hierarchy:
+    """Levels of detail of a fan cloud: the record of a reduction (section 6).
+
+    Made by :func:`hierarchy` or ``reduce(..., return_hierarchy=True)``.
+    ``level(m)`` gives the fan cloud of any level between the coarsest
+    computed (``n_min``) and the input (``n_points``); ``level(m,
+    base=edited)`` reinserts the removed points relative to an edited coarse
+    level; :meth:`selective` refines only a region of interest.
+
+    Attributes
+    ----------
+    order : numpy.ndarray
+        Input indices of the removed points, first removed first.
+    detail : numpy.ndarray
+        ``(r, 6)``: per removed point its offset from the centroid of its
+        ring at removal time and its normal, in the ring's local frame
+        (tangent to the first ring point, normal x tangent, Newell normal).
+    """
+
+    def __init__(self, *, source: FanCloud, order, rem_off, rem_ring, rem_open, detail, log_off,
+                 ent_x, ent_open, ent_off, ent_ring, coarse_off, coarse_ring, coarse_open,
+                 weights, method):
+        pdata = dict(source.point_data)
+        original = pdata.pop(ORIGINAL_ID, None)
+        n = source.n_points
+        if original is None:
+            original = np.arange(n, dtype=np.int64)
+        self.source = FanCloud(source.points, source.offsets, source.ring, source.normals,
+                               source.open, source.rotated, pdata)
+        self.original_id = np.asarray(original, dtype=np.int64)
+        self.order = np.asarray(order, np.int64)
+        self.rem_off = np.asarray(rem_off, np.int64)
+        self.rem_ring = np.asarray(rem_ring, np.int64)
+        self.rem_open = np.asarray(rem_open, bool)
+        self.detail = np.asarray(detail, np.float64)
+        self.log_off = np.asarray(log_off, np.int64)
+        self.ent_x = np.asarray(ent_x, np.int64)
+        self.ent_open = np.asarray(ent_open, bool)
+        self.ent_off = np.asarray(ent_off, np.int64)
+        self.ent_ring = np.asarray(ent_ring, np.int64)
+        self.coarse_off = np.asarray(coarse_off, np.int64)
+        self.coarse_ring = np.asarray(coarse_ring, np.int64)
+        self.coarse_open = np.asarray(coarse_open, bool)
+        self.weights = tuple(float(x) for x in weights)
+        self.method = str(method)
+        self._check()
+
+    def _check(self):
+        n = self.source.n_points
+        r = len(self.order)
+        problems = []
+        if r >= n or len(self.rem_off) != r + 1 or len(self.log_off) != r + 1:
+            problems.append("removal arrays of inconsistent lengths")
+        if self.detail.shape != (r, 6) or len(self.rem_open) != r:
+            problems.append("detail or rem_open of the wrong shape")
+        if len(self.coarse_off) != n + 1 or len(self.coarse_open) != n:
+            problems.append("coarse level of the wrong size")
+        if len(self.original_id) != n:
+            problems.append("original_id of the wrong length")
+        for name in ("order", "rem_ring", "ent_x", "ent_ring", "coarse_ring"):
+            arr = getattr(self, name)
+            if len(arr) and (arr.min() < 0 or arr.max() >= n):
+                problems.append(f"{name} indices out of range")
+        if not problems and (self.rem_off[-1] != len(self.rem_ring)
+                             or self.log_off[-1] != len(self.ent_x)
+                             or len(self.ent_off) != len(self.ent_x) + 1
+                             or self.ent_off[-1] != len(self.ent_ring)
+                             or self.coarse_off[-1] != len(self.coarse_ring)):
+            problems.append("CSR offsets do not match their arrays")
+        if problems:
+            raise ValueError("inconsistent hierarchy: " + "; ".join(problems))
+
+    # -- sizes --------------------------------------------------------------
+    @property
+    def n_points(self) -> int:
+        """Points of the finest level (the input)."""
+        return self.source.n_points
+
+    @property
+    def n_min(self) -> int:
+        """Points of the coarsest level computed."""
+        return self.n_points - len(self.order)
+
+    def __repr__(self) -> str:
+        return (f"Hierarchy({self.n_points} points down to {self.n_min}, weights={self.weights}, "
+                f"method={self.method!r})")
+
+    def _check_level(self, n_points) -> int:
+        if isinstance(n_points, bool) or not isinstance(n_points, numbers.Integral):
+            raise ValueError(f"n_points must be an integer, got {n_points!r}")
+        m = int(n_points)
+        if not self.n_min <= m <= self.n_points:
+            raise ValueError(
+                f"level {m} is outside this hierarchy: it goes from {self.n_min} to "
+                f"{self.n_points} points (build it further with hierarchy(..., n_points=...))"
+            )
+        return m
+
+    # -- levels ---------------------------------------------------------------
+    def _state(self, m: int):
+        """Fan table, lengths, open flags and active mask of level m."""
+        n = self.n_points
+        sizes = np.diff(self.coarse_off)
+        width = max(int(sizes.max(initial=0)), int(np.diff(self.rem_off).max(initial=0)),
+                    int(np.diff(self.ent_off).max(initial=0)), 1)
+        R = np.zeros((n, width), np.int64)
+        rows = np.repeat(np.arange(n), sizes)
+        R[rows, np.arange(len(rows)) - self.coarse_off[rows]] = self.coarse_ring
+        rlen = sizes.astype(np.int64)
+        ropen = self.coarse_open.copy()
+        active = np.ones(n, bool)
+        active[self.order] = False
+        RK.undo(R, rlen, ropen, active, self.order, self.rem_off, self.rem_ring, self.rem_open,
+                self.log_off, self.ent_x, self.ent_open, self.ent_off, self.ent_ring,
+                len(self.order), n - m)
+        return R, rlen, ropen, active
+
+    def _base_positions(self, base):
+        """(points, normals, level) with a coarser level's (edited) positions put in."""
+        if not isinstance(base, FanCloud):
+            raise TypeError(f"base must be a FanCloud (a level of this hierarchy), got "
+                            f"{type(base).__name__}")
+        ids = base.point_data.get(ORIGINAL_ID)
+        if ids is None:
+            raise ValueError(f"base has no {ORIGINAL_ID!r} point array: it must be a level of "
+                             "this hierarchy (from level() or reduce())")
+        m0 = base.n_points
+        self._check_level(m0)
+        index = self._index_of(ids)
+        n = self.n_points
+        expected = np.ones(n, bool)
+        expected[self.order[: n - m0]] = False
+        got = np.zeros(n, bool)
+        got[index] = True
+        if not np.array_equal(expected, got):
+            raise ValueError(f"base's points are not the points of level {m0} of this hierarchy")
+        pts = self.source.points.copy()
+        nrm = self.source.normals.copy()
+        pts[index] = base.points
+        nrm[index] = base.normals
+        return pts, nrm, m0
+
+    def _index_of(self, ids) -> np.ndarray:
+        ids = np.asarray(ids, dtype=np.int64)
+        sorter = np.argsort(self.original_id, kind="stable")
+        at = np.searchsorted(self.original_id, ids, sorter=sorter)
+        at = np.clip(at, 0, len(sorter) - 1)
+        index = sorter[at]
+        if not np.array_equal(self.original_id[index], ids):
+            raise ValueError(f"base has {ORIGINAL_ID} values that are not in this hierarchy")
+        return index
+
+    def level(self, n_points, base=None) -> FanCloud:
+        """The fan cloud of the level with ``n_points`` points.
+
+        Parameters
+        ----------
+        n_points : int
+            Between :attr:`n_min` and :attr:`n_points`.
+        base : FanCloud, optional
+            A coarser level of this hierarchy (from :meth:`level`, with its
+            ``original_id`` array), possibly edited (points moved, e.g.
+            smoothed). Its points keep their positions and the points
+            reinserted above it are placed by their detail in the local
+            frames of the edited surface. Without ``base`` every point has
+            its original position (``level(n_points)`` of the finest level
+            gives back exactly the input points).
+
+        Returns
+        -------
+        FanCloud
+            Points in input order, with ``original_id``.
+        """
+        m = self._check_level(n_points)
+        if base is None:
+            pts, nrm = self.source.points, self.source.normals
+        else:
+            pts, nrm, m0 = self._base_positions(base)
+            if m < m0:
+                raise ValueError(f"base has {m0} points: it cannot be refined to a coarser "
+                                 f"level ({m})")
+            n = self.n_points
+            RK.place(pts, nrm, self.order, self.rem_off, self.rem_ring, self.detail, n - m0,
+                     n - m, np.zeros(n, bool))
+        R, rlen, ropen, active = self._state(m)
+        return self._fan_cloud(pts, nrm, R, rlen, ropen, active)
+
+    def _fan_cloud(self, pts, nrm, R, rlen, ropen, active) -> FanCloud:
+        ids = np.flatnonzero(active)
+        rank = np.full(self.n_points, -1, np.int64)
+        rank[ids] = np.arange(len(ids))
+        sizes = rlen[ids]
+        offsets = np.zeros(len(ids) + 1, np.int64)
+        np.cumsum(sizes, out=offsets[1:])
+        mask = np.arange(R.shape[1])[None, :] < sizes[:, None]
+        ring = rank[R[ids][mask]]
+        if len(ring) and ring.min() < 0:
+            raise RuntimeError("internal error: a fan of the level refers to a removed point")
+        pdata = {k: v[ids].copy() for k, v in self.source.point_data.items()}
+        pdata[ORIGINAL_ID] = self.original_id[ids].copy()
+        return FanCloud(np.ascontiguousarray(pts[ids]), offsets, ring,
+                        np.ascontiguousarray(nrm[ids]), ropen[ids].copy(),
+                        self.source.rotated[ids].copy(), pdata,
+                        {"hierarchy_level": len(ids)})
+
+    def selective(self, region, base=None, start=None, *, k: int = 6) -> FanCloud:
+        """Refine only a region of interest (paper section 6, Figure 11).
+
+        All removed points are updated in reverse removal order (placed by
+        their detail on the current, possibly edited, surface), but only
+        those inside ``region`` are reinserted.
+
+        Parameters
+        ----------
+        region : callable, numpy.ndarray, or sequence
+            ``region(points) -> bool array`` on ``(m, 3)`` positions; or a
+            bool mask over the input points; or box bounds
+            ``(xmin, xmax, ymin, ymax, zmin, zmax)``; or a sphere
+            ``(center, radius)``.
+        base : FanCloud, optional
+            The coarse level to start from (possibly edited), as in
+            :meth:`level`.
+        start : int, optional
+            Without ``base``: the level to start from (default: the coarsest).
+        k : int, default: 6
+            Neighbours per fan of the result, whose fans are built anew
+            (its mixed resolution is no level of the hierarchy).
+
+        Returns
+        -------
+        FanCloud
+            The coarse level's points plus the reinserted ones, with
+            ``original_id``.
+        """
+        from .fans import build_fans
+
+        n = self.n_points
+        if base is not None:
+            if start is not None:
+                raise ValueError("give base or start, not both")
+            pts, nrm, m0 = self._base_positions(base)
+            RK.place(pts, nrm, self.order, self.rem_off, self.rem_ring, self.detail, n - m0, 0,
+                     np.zeros(n, bool))
+        else:
+            m0 = self.n_min if start is None else self._check_level(start)
+            pts, nrm = self.source.points, self.source.normals
+        removed = self.order[: n - m0]
+        inside = _region_mask(region, pts, removed, n)
+        active = np.ones(n, bool)
+        active[removed] = False
+        active[removed[inside]] = True
+        ids = np.flatnonzero(active)
+        pdata = {key: v[ids] for key, v in self.source.point_data.items()}
+        pdata[ORIGINAL_ID] = self.original_id[ids]
+        out = build_fans(pts[ids], k, normals=nrm[ids], point_data=pdata)
+        out.info["reinserted"] = int(inside.sum())
+        return out
+
+    # -- saving -----------------------------------------------------------
+    def _arrays(self) -> dict[str, np.ndarray]:
+        return {name: getattr(self, name) for name in _HIER_ARRAYS}
+
+    def save(self, path) -> None:
+        """Write to ``.npz`` (numpy, no pickle) or ``.vtp`` (the finest fan cloud plus
+        field arrays ``hierarchy_<name>``); :meth:`load` reads either."""
+        path = str(path)
+        if path.lower().endswith(".npz"):
+            arrays = {f"h_{k}": v for k, v in self._arrays().items()}
+            fc = self.source
+            arrays.update(points=fc.points, offsets=fc.offsets, ring=fc.ring,
+                          normals=fc.normals, open=fc.open, rotated=fc.rotated,
+                          weights=np.array(self.weights), method=np.array(self.method))
+            for key, v in fc.point_data.items():
+                if v.dtype == object:
+                    raise ValueError(f"point array {key!r} holds Python objects: not saved")
+                arrays[f"pd_{key}"] = v
+            np.savez_compressed(path, **arrays)
+        elif path.lower().endswith(".vtp"):
+            from fancloud_vtk.algorithms.convert import hierarchy_to_vtk, write_vtp
+
+            write_vtp(hierarchy_to_vtk(self), path)
+        else:
+            raise ValueError(f"a hierarchy is saved as .npz or .vtp, got {path!r}")
+
+    @classmethod
+    def load(cls, path) -> Hierarchy:
+        """Read a hierarchy written by :meth:`save`."""
+        path = str(path)
+        if path.lower().endswith(".vtp"):
+            from fancloud_vtk.algorithms.convert import hierarchy_from_vtk, read_vtp
+
+            return hierarchy_from_vtk(read_vtp(path))
+        if not path.lower().endswith(".npz"):
+            raise ValueError(f"a hierarchy is read from .npz or .vtp, got {path!r}")
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                data = {k: z[k] for k in z.files}
+        except (OSError, ValueError, EOFError) as exc:
+            raise OSError(f"cannot read hierarchy {path!r}: {exc}") from exc
+        try:
+            pdata = {k[3:]: v for k, v in data.items() if k.startswith("pd_")}
+            fc = FanCloud(data["points"], data["offsets"], data["ring"], data["normals"],
+                          data["open"], data["rotated"], pdata)
+            h = {k[2:]: v for k, v in data.items() if k.startswith("h_")}
+            return cls.from_arrays(fc, h, tuple(data["weights"]), str(data["method"]))
+        except KeyError as exc:
+            raise OSError(f"{path!r} is not a saved hierarchy: no array {exc}") from None
+
+    @classmethod
+    def from_arrays(cls, source: FanCloud, arrays: dict, weights, method) -> Hierarchy:
+        """A hierarchy from its source fan cloud and the arrays of :meth:`_arrays`."""
+        missing = [k for k in _HIER_ARRAYS if k not in arrays]
+        if missing:
+            raise ValueError(f"hierarchy arrays missing: {missing}")
+        src = FanCloud(source.points, source.offsets, source.ring, source.normals, source.open,
+                       source.rotated, {**source.point_data, ORIGINAL_ID: arrays["original_id"]})
+        kw = {k: arrays[k] for k in _HIER_ARRAYS if k != "original_id"}
+        kw["detail"] = np.asarray(kw["detail"]).reshape(-1, 6)
+        return cls(source=src, weights=weights, method=method, **kw)
+
+
+def _region_mask(region, pts, removed, n) -> np.ndarray:
+    """Which of the ``removed`` points lie in the region."""
+    if callable(region):
+        got = np.asarray(region(pts[removed].copy()))
+        if got.shape != (len(removed),) or got.dtype != bool:
+            raise ValueError(
+                f"region(points) must return one bool per point ({len(removed)}), got "
+                f"{got.dtype} {got.shape}"
+            )
+        return got
+    if isinstance(region, np.ndarray) and region.dtype == bool:
+        if region.shape != (n,):
+            raise ValueError(f"a region mask must have one bool per input point ({n}), got "
+                             f"shape {region.shape}")
+        return region[removed]
+    if isinstance(region, (tuple, list)) and len(region) == 2:
+        center = np.asarray(region[0], dtype=np.float64)
+        radius = float(region[1])
+        if center.shape != (3,) or not radius > 0:
+            raise ValueError("a sphere region is (center (3 numbers), radius > 0)")
+        return np.linalg.norm(pts[removed] - center, axis=1) <= radius
+    box = np.asarray(region, dtype=np.float64) if isinstance(region, (tuple, list, np.ndarray)) \
+        else None
+    if box is not None and box.shape == (6,):
+        p = pts[removed]
+        return ((p[:, 0] >= box[0]) & (p[:, 0] <= box[1]) & (p[:, 1] >= box[2])
+                & (p[:, 1] <= box[3]) & (p[:, 2] >= box[4]) & (p[:, 2] <= box[5]))
+    raise ValueError(
+        "region must be a callable on (m, 3) positions, a bool mask over the input points, "
+        "box bounds (xmin, xmax, ymin, ymax, zmin, zmax) or a sphere (center, radius)"
+    )
