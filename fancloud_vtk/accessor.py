@@ -14,10 +14,19 @@ import inspect
 import pyvista as pv
 
 from fancloud_vtk.algorithms.base import run
-from fancloud_vtk.algorithms.convert import fancloud_from_vtk, is_fancloud
+from fancloud_vtk.algorithms.convert import fancloud_from_vtk, input_fan_cloud, is_fancloud
+from fancloud_vtk.algorithms.entropy import FanCloudEntropyFilter
 from fancloud_vtk.algorithms.fans import FanCloudFilter
 from fancloud_vtk.algorithms.mesh import FanCloudMeshFilter
-from fancloud_vtk.params import FAN_PARAMS, MESH_PARAMS, Param, check_params
+from fancloud_vtk.algorithms.reduce import FanCloudReduceFilter
+from fancloud_vtk.params import (
+    ENTROPY_PARAMS,
+    FAN_PARAMS,
+    MESH_PARAMS,
+    REDUCE_PARAMS,
+    Param,
+    check_params,
+)
 
 
 def _point_set(dataset):
@@ -46,7 +55,7 @@ def _run(algorithm, dataset, progress_bar: bool, message: str) -> pv.PolyData:
     return result
 
 
-def _document(table: tuple[Param, ...]):
+def _document(table: tuple[Param, ...], returns: str = "pv.PolyData"):
     """Fill ``{params}`` in the docstring and set a signature from the table."""
 
     def decorate(func):
@@ -63,7 +72,7 @@ def _document(table: tuple[Param, ...]):
         params.append(
             inspect.Parameter("progress_bar", inspect.Parameter.KEYWORD_ONLY, default=False)
         )
-        func.__signature__ = inspect.Signature(params, return_annotation="pv.PolyData")
+        func.__signature__ = inspect.Signature(params, return_annotation=returns)
         return func
 
     return decorate
@@ -172,3 +181,121 @@ class FanCloudAccessor:
         """
         values = check_params(FAN_PARAMS + MESH_PARAMS, params)
         return _run(FanCloudMeshFilter(**values), self._dataset, progress_bar, "Meshing")
+
+    @_document(FAN_PARAMS + ENTROPY_PARAMS)
+    def entropy(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
+        """The entropy of every point (paper section 5) as point arrays.
+
+        Three kinds of input: a fan cloud (the output of :meth:`fans`; its
+        rings are used), a triangle mesh (every vertex's one-ring is its fan)
+        or a plain point set (its fans are built first with the fan
+        parameters). The field array ``fancloud_input`` says which it took.
+
+        Parameters
+        ----------
+        {params}
+        progress_bar : bool, default: False
+            Show a progress bar (needs ``tqdm``).
+
+        Returns
+        -------
+        pyvista.PolyData
+            A new dataset: the input (for a point set: its fan cloud) with the
+            point arrays ``entropy`` (active scalars), ``entropy_dist``,
+            ``entropy_curv``, ``entropy_cc`` and ``entropy_col``.
+
+        See Also
+        --------
+        fancloud_vtk.entropy : the same on a FanCloud or TriangleMesh.
+
+        Examples
+        --------
+        >>> import pyvista as pv
+        >>> from fancloud_vtk.data import bunny_path
+        >>> bunny = pv.read(bunny_path())
+        >>> ent = bunny.fancloud.entropy()
+        >>> ent["fancloud_input"][0], ent.n_points == bunny.n_points
+        ('triangle mesh', True)
+        >>> ent.plot(scalars="entropy_curv", log_scale=True)  # doctest: +SKIP
+        """
+        values = check_params(FAN_PARAMS + ENTROPY_PARAMS, params)
+        return _run(FanCloudEntropyFilter(**values), self._dataset, progress_bar, "Entropy")
+
+    @_document(FAN_PARAMS + REDUCE_PARAMS)
+    def reduce(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
+        """Reduce to an exact number of points by entropy (paper section 5).
+
+        Repeatedly removes the point of lowest entropy (``method='error'``:
+        the point whose removal changes the surface least) and re-forms the
+        fans around it. Three kinds of input, as for :meth:`entropy`.
+
+        Parameters
+        ----------
+        {params}
+        progress_bar : bool, default: False
+            Show a progress bar (needs ``tqdm``).
+
+        Returns
+        -------
+        pyvista.PolyData
+            A new fan cloud (with ``mesh=True``: its triangle mesh) of the
+            kept points, with their point arrays, ``original_id`` (the index
+            of each point in the input) and the field array
+            ``fancloud_input``.
+
+        See Also
+        --------
+        fancloud_vtk.reduce : the same on a FanCloud or TriangleMesh.
+        hierarchy : the levels of detail of the reduction.
+
+        Examples
+        --------
+        >>> import pyvista as pv
+        >>> from fancloud_vtk.data import bunny_path
+        >>> bunny = pv.read(bunny_path())
+        >>> small = bunny.fancloud.reduce(keep=0.176, mesh=True)
+        >>> small.n_points == round(0.176 * bunny.n_points)
+        True
+        >>> small.plot(smooth_shading=True)  # doctest: +SKIP
+        """
+        values = check_params(FAN_PARAMS + REDUCE_PARAMS, params)
+        return _run(FanCloudReduceFilter(**values), self._dataset, progress_bar, "Reducing")
+
+    def hierarchy(self, n_points=None, *, weights=(1.0, 1.0, 50.0, 0.0), method="entropy",
+                  color_array="", **fan_params):
+        """The levels of detail of the reduction (paper section 6).
+
+        Parameters
+        ----------
+        n_points : int, optional
+            The coarsest level to compute (default: as far as it goes).
+        weights, method, color_array
+            As for :meth:`reduce`.
+        **fan_params
+            Fan parameters (``k``, ...) for a plain point set.
+
+        Returns
+        -------
+        fancloud_vtk.Hierarchy
+            ``level(m)`` gives the fan cloud of any level (a
+            :class:`~fancloud_vtk.FanCloud`; ``pv.wrap(fc.to_vtk())`` for
+            PyVista), ``level(m, base=edited)`` refines an edited level,
+            ``selective(region)`` refines a region of interest.
+
+        Examples
+        --------
+        >>> import pyvista as pv
+        >>> from fancloud_vtk.data import bunny_path
+        >>> h = pv.read(bunny_path()).fancloud.hierarchy(2000)
+        >>> coarse = pv.wrap(h.level(2000).to_vtk())
+        >>> coarse.n_points
+        2000
+        """
+        from fancloud_vtk.core.reduction import hierarchy
+
+        fan_values = check_params(FAN_PARAMS, fan_params)
+        check_params(REDUCE_PARAMS, {"weights": weights, "method": method,
+                                     "color_array": color_array})
+        fc, _ = input_fan_cloud(_point_set(self._dataset), fan_values)
+        return hierarchy(fc, n_points, weights=weights, method=method,
+                         colors=color_array or None)

@@ -1,10 +1,11 @@
 """Type stub for :mod:`fancloud_vtk.accessor` (the ``dataset.fancloud`` accessor).
 
 At run time ``FanCloudAccessor.fans`` takes ``**params`` checked against
-``fancloud_vtk.params.FAN_PARAMS``, and ``FanCloudAccessor.mesh`` against
-``FAN_PARAMS + MESH_PARAMS``; this stub spells those keywords out so editors
-complete and check them. The ``fans`` and ``mesh`` signatures between the
-markers are generated from the tables by ``scripts/gen_docs.py``; do not
+``fancloud_vtk.params.FAN_PARAMS``, ``FanCloudAccessor.mesh`` against
+``FAN_PARAMS + MESH_PARAMS``, ``entropy`` and ``reduce`` against
+``FAN_PARAMS + ENTROPY_PARAMS`` / ``REDUCE_PARAMS``; this stub spells those
+keywords out so editors complete and check them. The verb signatures between
+the markers are generated from the tables by ``scripts/gen_docs.py``; do not
 edit them by hand.
 
 PyVista attaches the accessor at run time, and its ``DataObject.__getattr__``
@@ -23,6 +24,7 @@ from typing import Literal
 import pyvista as pv
 
 from fancloud_vtk.core.model import FanCloud
+from fancloud_vtk.core.reduction import Hierarchy
 
 class FanCloudAccessor:
     """Fan cloud verbs on any PyVista dataset: ``dataset.fancloud.<verb>()``."""
@@ -65,3 +67,49 @@ class FanCloudAccessor:
     ) -> pv.PolyData:
         """Triangle mesh of the dataset's fan cloud or points (paper section 4); a new PolyData."""
     # END GENERATED mesh
+    # BEGIN GENERATED entropy (scripts/gen_docs.py from FAN_PARAMS + ENTROPY_PARAMS)
+    def entropy(
+        self,
+        *,
+        k: int = 6,
+        max_angle: float = 90.0,
+        max_replacements: int = 42,
+        rule: Literal["cover", "paper"] = "cover",
+        rotate_sharp_edges: bool = True,
+        orient: bool = True,
+        weights: tuple[float, float, float, float] = (1.0, 1.0, 50.0, 0.0),
+        color_array: str = "",
+        progress_bar: bool = False,
+    ) -> pv.PolyData:
+        """The entropy of every point as point arrays (paper section 5); a new PolyData."""
+    # END GENERATED entropy
+    # BEGIN GENERATED reduce (scripts/gen_docs.py from FAN_PARAMS + REDUCE_PARAMS)
+    def reduce(
+        self,
+        *,
+        k: int = 6,
+        max_angle: float = 90.0,
+        max_replacements: int = 42,
+        rule: Literal["cover", "paper"] = "cover",
+        rotate_sharp_edges: bool = True,
+        orient: bool = True,
+        keep: float = 0.42,
+        n_points: int = 0,
+        weights: tuple[float, float, float, float] = (1.0, 1.0, 50.0, 0.0),
+        method: Literal["entropy", "error"] = "entropy",
+        color_array: str = "",
+        mesh: bool = False,
+        progress_bar: bool = False,
+    ) -> pv.PolyData:
+        """Reduce to an exact number of points by entropy (paper section 5); a new PolyData."""
+    # END GENERATED reduce
+    def hierarchy(
+        self,
+        n_points: int | None = None,
+        *,
+        weights: tuple[float, float, float, float] = (1.0, 1.0, 50.0, 0.0),
+        method: Literal["entropy", "error"] = "entropy",
+        color_array: str = "",
+        **fan_params: object,
+    ) -> Hierarchy:
+        """The levels of detail of the reduction (paper section 6): a Hierarchy."""

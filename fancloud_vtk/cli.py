@@ -4,6 +4,10 @@
     Build the fan cloud of a point cloud or mesh file.
 ``fancloud mesh IN -o OUT.{ply,obj,vtp,stl} [...]``
     Triangle mesh (paper section 4) of a fan cloud .vtp or of any point cloud.
+``fancloud entropy IN -o OUT.vtp [--weights a1,a2,a3,a4] [...]``
+    The entropy of every point (paper section 5) as point arrays.
+``fancloud reduce IN -o OUT (--keep F | --n N) [--weights ...] [--method entropy|error] [--mesh]``
+    Reduction by entropy to an exact number of points (paper section 5).
 ``fancloud demo [--out DIR]``
     The main job on built-in data (the Stanford bunny shipped with pymeshlab).
 ``fancloud bench fans [...]``
@@ -18,13 +22,39 @@ import sys
 import time
 import warnings
 
-from fancloud_vtk.params import FAN_PARAMS, MESH_PARAMS, Param
+from fancloud_vtk.params import ENTROPY_PARAMS, FAN_PARAMS, MESH_PARAMS, REDUCE_PARAMS, Param
 
 
-def _add_params(parser: argparse.ArgumentParser, table: tuple[Param, ...]) -> None:
-    """Options derived from a parameter table."""
+def _vector(size: int):
+    """argparse type: ``'1,1,50,0'`` -> (1.0, 1.0, 50.0, 0.0)."""
+
+    def parse(text: str) -> tuple:
+        try:
+            values = tuple(float(v) for v in text.split(","))
+        except ValueError:
+            msg = f"not {size} comma-separated numbers: {text!r}"
+            raise argparse.ArgumentTypeError(msg) from None
+        if len(values) != size:
+            raise argparse.ArgumentTypeError(f"need {size} comma-separated numbers, got {text!r}")
+        return values
+
+    parse.__name__ = f"{size} comma-separated numbers"
+    return parse
+
+
+def _add_params(parser: argparse.ArgumentParser, table: tuple[Param, ...], flags=None) -> None:
+    """Options derived from a parameter table (``flags``: other option strings by name)."""
+    flags = flags or {}
     for p in table:
-        if p.kind == "bool":
+        names = flags.get(p.name, (p.cli_flag,))
+        if p.kind == "vector":
+            parser.add_argument(*names, dest=p.name, type=_vector(p.size), default=p.default,
+                                metavar=",".join(["X"] * p.size),
+                                help=f"{p.doc} (default: {','.join(map(str, p.default))})")
+        elif p.kind == "str":
+            parser.add_argument(*names, dest=p.name, default=p.default,
+                                help=f"{p.doc} (default: {p.default!r})")
+        elif p.kind == "bool":
             parser.add_argument(
                 p.cli_flag, dest=p.name, default=p.default,
                 action=argparse.BooleanOptionalAction, help=f"{p.doc} (default: {p.default})",
@@ -32,7 +62,7 @@ def _add_params(parser: argparse.ArgumentParser, table: tuple[Param, ...]) -> No
         else:
             kind = {"int": int, "float": float, "choice": str}[p.kind]
             parser.add_argument(
-                p.cli_flag, dest=p.name, type=kind, default=p.default, choices=p.choices,
+                *names, dest=p.name, type=kind, default=p.default, choices=p.choices,
                 help=f"{p.doc} (default: {p.default})",
             )
 
@@ -167,6 +197,84 @@ def _print_summary(fc, elapsed, path=None) -> None:
     _print_rows(rows)
 
 
+def _load_any(path, fan_params, quiet):
+    """(fan cloud, kind): a fan cloud .vtp as it is, a mesh file's one-rings, or built fans."""
+    from fancloud_vtk.algorithms.convert import KIND_FANS, KIND_MESH, KIND_POINTS
+    from fancloud_vtk.io import read_point_cloud
+
+    if path.lower().endswith(".vtp"):
+        from fancloud_vtk.algorithms.convert import fancloud_from_vtk, is_fancloud, read_vtp
+
+        data = read_vtp(path)
+        if is_fancloud(data):
+            return fancloud_from_vtk(data), KIND_FANS
+    src = read_point_cloud(path)
+    if src.faces is not None and len(src.faces):
+        from fancloud_vtk.core.entropy import fan_cloud_of_mesh
+
+        data = dict(src.point_data)
+        normals = data.pop("Normals", None)
+        if normals is not None and not (abs(normals).sum(axis=1) > 0).all():
+            normals = None
+        return fan_cloud_of_mesh(src.points, src.faces, normals=normals, point_data=data), \
+            KIND_MESH
+    return _build(src, fan_params, quiet), KIND_POINTS
+
+
+def cmd_entropy(args) -> int:
+    from fancloud_vtk.core.entropy import entropy
+
+    _check_output(args.output, ".vtp")
+    t0 = time.perf_counter()
+    fc, kind = _load_any(args.input, _params(args, FAN_PARAMS), args.quiet)
+    ent = entropy(fc, args.weights, colors=args.color_array or None)
+    elapsed = time.perf_counter() - t0
+    fc.point_data.update(ent.as_dict())
+    fc.save(args.output)
+    if not args.quiet:
+        rows = [("input", f"{kind}, {fc.n_points:,} points"), ("weights", str(ent.weights)),
+                ("mean neighbour distance", f"{ent.mean_distance:.6g}")]
+        for name, arr in ent.as_dict().items():
+            rows.append((name, f"min {arr.min():.4g}  mean {arr.mean():.4g}  max {arr.max():.4g}"))
+        rows += [("time", f"{elapsed:.2f} s"), ("written", args.output)]
+        _print_rows(rows)
+    return 0
+
+
+def cmd_reduce(args) -> int:
+    from fancloud_vtk.algorithms.convert import MESH_FORMATS, mesh_to_vtk, write_mesh
+    from fancloud_vtk.core.mesh import fan_cloud_to_mesh
+    from fancloud_vtk.core.reduction import reduce
+
+    _check_output(args.output, MESH_FORMATS if args.mesh else ".vtp")
+    if args.n_points is None and args.keep is None:
+        raise ValueError("give --keep F (a fraction) or --n N (a count)")
+    t0 = time.perf_counter()
+    fc, kind = _load_any(args.input, _params(args, FAN_PARAMS), args.quiet)
+    t1 = time.perf_counter()
+    progress = _Progress("reduce", args.quiet)
+    try:
+        small = reduce(fc, n_points=args.n_points, keep=args.keep, weights=args.weights,
+                       method=args.method, colors=args.color_array or None, progress=progress)
+    finally:
+        progress.close()
+    t2 = time.perf_counter()
+    rows = [("input", f"{kind}, {fc.n_points:,} points"),
+            ("kept", f"{small.n_points:,} ({100 * small.n_points / fc.n_points:.1f}%)"),
+            ("weights", str(tuple(args.weights))), ("method", args.method),
+            ("time: read and fans", f"{t1 - t0:.2f} s"), ("time: reduction", f"{t2 - t1:.2f} s")]
+    if args.mesh:
+        mesh = fan_cloud_to_mesh(small)
+        write_mesh(mesh_to_vtk(mesh), args.output)
+        rows += [("triangles", f"{mesh.n_triangles:,}"), ("holes", f"{mesh.stats['holes']}")]
+    else:
+        small.save(args.output)
+    rows.append(("written", args.output))
+    if not args.quiet:
+        _print_rows(rows)
+    return 0
+
+
 def cmd_demo(args) -> int:
     from fancloud_vtk.demo import run_demo
 
@@ -199,6 +307,26 @@ def make_parser() -> argparse.ArgumentParser:
     _add_params(p, FAN_PARAMS + MESH_PARAMS)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_mesh)
+
+    p = sub.add_parser("entropy", help="entropy of every point (a fan cloud .vtp with arrays)")
+    p.add_argument("input", help="a fan cloud .vtp, a mesh file (one-rings) or a point cloud")
+    p.add_argument("-o", "--output", required=True, help="output fan cloud with entropy (.vtp)")
+    _add_params(p, FAN_PARAMS + ENTROPY_PARAMS)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    p.set_defaults(func=cmd_entropy)
+
+    p = sub.add_parser("reduce", help="reduce to an exact number of points by entropy")
+    p.add_argument("input", help="a fan cloud .vtp, a mesh file (one-rings) or a point cloud")
+    p.add_argument("-o", "--output", required=True,
+                   help="output fan cloud (.vtp), or with --mesh a mesh (.ply .obj .vtp .stl .vtk)")
+    amount = p.add_mutually_exclusive_group(required=True)
+    amount.add_argument("--keep", type=float, default=None, help="fraction of points to keep")
+    amount.add_argument("--n", "--n-points", dest="n_points", type=int, default=None,
+                        help="number of points to keep")
+    _add_params(p, FAN_PARAMS + tuple(x for x in REDUCE_PARAMS
+                                      if x.name not in ("keep", "n_points")))
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    p.set_defaults(func=cmd_reduce)
 
     p = sub.add_parser("demo", help="fan cloud and mesh of the bunny: built, saved, rendered")
     p.add_argument("--out", default="fancloud_demo", help="output folder (default: %(default)s)")

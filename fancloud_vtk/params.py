@@ -22,11 +22,12 @@ class Param:
     """One filter parameter."""
 
     name: str  #: keyword of the core function and the accessor
-    kind: str  #: 'int', 'float', 'bool' or 'choice'
+    kind: str  #: 'int', 'float', 'bool', 'choice', 'str' or 'vector' (of floats)
     default: object
     doc: str
-    range: tuple | None = None  #: inclusive (lo, hi) for numbers
+    range: tuple | None = None  #: inclusive (lo, hi) for numbers (each entry of a vector)
     choices: tuple | None = None  #: allowed values for 'choice'
+    size: int = 1  #: number of entries of a 'vector'
 
     @property
     def vtk_name(self) -> str:
@@ -57,6 +58,12 @@ class Param:
             if not isinstance(value, str) or value not in self.choices:
                 raise ValueError(f"{self.name} must be one of {list(self.choices)}, got {value!r}")
             return value
+        if self.kind == "str":
+            if not isinstance(value, str):
+                raise TypeError(f"{self.name} must be a string, got {value!r}")
+            return value
+        if self.kind == "vector":
+            return self._check_vector(value)
         if isinstance(value, _bool_types()) or not isinstance(value, numbers.Real):
             raise TypeError(f"{self.name} must be a number, got {value!r}")
         if self.kind == "int":
@@ -74,6 +81,17 @@ class Param:
             lo, hi = self.range
             raise ValueError(f"{self.name} must be between {lo} and {hi}, got {out}")
         return out
+
+
+    def _check_vector(self, value) -> tuple:
+        if isinstance(value, (str, bytes)) or not hasattr(value, "__len__"):
+            raise TypeError(f"{self.name} must be {self.size} numbers, got {value!r}")
+        values = list(value)
+        if len(values) != self.size:
+            raise ValueError(f"{self.name} must be {self.size} numbers, got {len(values)}: "
+                             f"{value!r}")
+        scalar = Param(self.name, "float", 0.0, self.doc, range=self.range)
+        return tuple(scalar.check(v) for v in values)
 
 
 def _bool_types() -> tuple[type, ...]:
@@ -163,4 +181,55 @@ MESH_PARAMS: tuple[Param, ...] = (
         "self_intersections", "bool", True,
         "count self-intersecting triangle pairs in the mesh statistics",
     ),
+)
+
+_WEIGHTS = Param(
+    "weights", "vector", (1.0, 1.0, 50.0, 0.0),
+    "entropy weights (a1, a2, a3, a4) of distance, curvature, curvature change and colour; "
+    "(1, 0, 0, 0) gives an almost uniform reduction",
+    range=(0.0, 1e12), size=4,
+)
+_COLOR_ARRAY = Param(
+    "color_array", "str", "",
+    "name of the point array with the colours for the colour term ('': the first of RGB, "
+    "RGBA, Colors, ... that the input has)",
+)
+
+#: Parameters of the entropy (paper section 5): entropy, FanCloudEntropyFilter,
+#: dataset.fancloud.entropy(), ``fancloud entropy`` (with FAN_PARAMS for point input).
+ENTROPY_PARAMS: tuple[Param, ...] = (_WEIGHTS, _COLOR_ARRAY)
+
+#: Parameters of the reduction (paper sections 5 and 6): reduce, FanCloudReduceFilter,
+#: dataset.fancloud.reduce(), ``fancloud reduce`` (with FAN_PARAMS for point input).
+REDUCE_PARAMS: tuple[Param, ...] = (
+    Param("keep", "float", 0.42, "fraction of the points to keep (used when n_points is 0)",
+          range=(1e-9, 1.0)),
+    Param("n_points", "int", 0, "number of points to keep (0: use keep)", range=(0, 2**62)),
+    _WEIGHTS,
+    Param(
+        "method", "choice", "entropy",
+        "what each removal minimises: 'entropy' (the point of lowest entropy) or 'error' (the "
+        "point whose removal changes the surface least, the distance to its ring's plane)",
+        choices=("entropy", "error"),
+    ),
+    _COLOR_ARRAY,
+    Param("mesh", "bool", False,
+          "output the triangle mesh of the reduced fan cloud (fan_cloud_to_mesh) instead of "
+          "the fan cloud"),
+)
+
+#: Parameters of the selective refinement (paper section 6, Figure 11):
+#: FanCloudSelectiveRefineFilter (with REDUCE_PARAMS for the coarse level).
+SELECTIVE_PARAMS: tuple[Param, ...] = (
+    Param("smooth_iterations", "int", 0,
+          "Laplacian smoothing steps applied to the coarse level before refining (Figure 11)",
+          range=(0, 10_000)),
+    Param("region", "choice", "sphere", "shape of the region of interest: 'sphere' or 'box'",
+          choices=("sphere", "box")),
+    Param("region_center", "vector", (0.0, 0.0, 0.0), "centre of the sphere region",
+          range=(-1e300, 1e300), size=3),
+    Param("region_radius", "float", 0.0, "radius of the sphere region (must be set: > 0)",
+          range=(0.0, 1e300)),
+    Param("region_bounds", "vector", (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+          "box region (xmin, xmax, ymin, ymax, zmin, zmax)", range=(-1e300, 1e300), size=6),
 )

@@ -31,7 +31,15 @@ sys.path.insert(0, str(ROOT))
 import fancloud_vtk  # noqa: E402
 import fancloud_vtk.algorithms  # noqa: E402
 import fancloud_vtk.core.mesh_stats  # noqa: E402
-from fancloud_vtk.params import FAN_PARAMS, MESH_PARAMS, Param, markdown_table  # noqa: E402
+from fancloud_vtk.params import (  # noqa: E402
+    ENTROPY_PARAMS,
+    FAN_PARAMS,
+    MESH_PARAMS,
+    REDUCE_PARAMS,
+    SELECTIVE_PARAMS,
+    Param,
+    markdown_table,
+)
 
 API_MD = ROOT / "docs" / "api.md"
 STUB = ROOT / "fancloud_vtk" / "accessor.pyi"
@@ -46,17 +54,40 @@ VERBS = {
         FAN_PARAMS + MESH_PARAMS,
         "Triangle mesh of the dataset's fan cloud or points (paper section 4); a new PolyData.",
     ),
+    "entropy": (
+        FAN_PARAMS + ENTROPY_PARAMS,
+        "The entropy of every point as point arrays (paper section 5); a new PolyData.",
+    ),
+    "reduce": (
+        FAN_PARAMS + REDUCE_PARAMS,
+        "Reduce to an exact number of points by entropy (paper section 5); a new PolyData.",
+    ),
+}
+
+#: Tables rendered into docs/api.md between ``BEGIN <NAME>`` / ``END <NAME>`` markers.
+TABLES = {
+    "FAN_PARAMS": FAN_PARAMS,
+    "MESH_PARAMS": MESH_PARAMS,
+    "ENTROPY_PARAMS": ENTROPY_PARAMS,
+    "REDUCE_PARAMS": REDUCE_PARAMS,
+    "SELECTIVE_PARAMS": SELECTIVE_PARAMS,
 }
 
 
 def stub_signature(table: tuple[Param, ...], name: str = "fans", doc: str | None = None) -> str:
     """The accessor method's signature (keyword-only, from the table) as stub lines."""
-    types = {"int": "int", "float": "float", "bool": "bool"}
+    types = {"int": "int", "float": "float", "bool": "bool", "str": "str"}
     doc = VERBS[name][1] if doc is None else doc
     lines = [f"    def {name}(", "        self,", "        *,"]
     for p in table:
         if p.kind == "choice":
             kind = "Literal[" + ", ".join(f'"{c}"' for c in p.choices) + "]"
+            default = f'"{p.default}"'
+        elif p.kind == "vector":
+            kind = "tuple[" + ", ".join(["float"] * p.size) + "]"
+            default = repr(p.default)
+        elif p.kind == "str":
+            kind = "str"
             default = f'"{p.default}"'
         else:
             kind = types[p.kind]
@@ -81,10 +112,8 @@ def replace_between(text: str, begin: str, end: str, body: str, path: Path) -> s
 
 def targets() -> list[tuple[Path, str, str, str]]:
     """Every generated block: (file, begin marker, end marker, content)."""
-    out = [
-        (API_MD, "BEGIN FAN_PARAMS", "END FAN_PARAMS", markdown_table(FAN_PARAMS)),
-        (API_MD, "BEGIN MESH_PARAMS", "END MESH_PARAMS", markdown_table(MESH_PARAMS)),
-    ]
+    out = [(API_MD, f"BEGIN {name}", f"END {name}", markdown_table(table))
+           for name, table in TABLES.items()]
     for verb, (table, doc) in VERBS.items():
         out.append((STUB, f"BEGIN GENERATED {verb}", f"END GENERATED {verb}",
                     stub_signature(table, verb, doc)))

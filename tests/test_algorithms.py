@@ -17,14 +17,17 @@ from vtkmodules.vtkIOXML import vtkXMLPolyDataReader, vtkXMLPolyDataWriter
 
 from fancloud_vtk import Cancelled, FanCloud, FanCloudInputError, build_fans
 from fancloud_vtk.algorithms import (
+    FanCloudEntropyFilter,
     FanCloudFilter,
     FanCloudMeshFilter,
+    FanCloudReduceFilter,
+    FanCloudSelectiveRefineFilter,
     fancloud_to_vtk,
     is_fancloud,
     run,
 )
 from fancloud_vtk.algorithms.convert import points_of
-from fancloud_vtk.params import FAN_PARAMS, MESH_PARAMS
+from fancloud_vtk.params import ENTROPY_PARAMS, FAN_PARAMS, MESH_PARAMS, REDUCE_PARAMS
 
 N = 2000
 
@@ -159,13 +162,21 @@ def _other_value(param):
         return not param.default
     if param.kind == "choice":
         return next(c for c in param.choices if c != param.default)
+    if param.kind == "str":
+        return "RGB"
+    if param.kind == "vector":
+        return tuple(v + 1.0 for v in param.default)
     return param.range[0] if param.default != param.range[0] else param.range[1]
 
 
 #: every filter with its parameter table: the setter test runs on each
-FILTER_PARAMS = [(FanCloudFilter, p) for p in FAN_PARAMS] + [
-    (FanCloudMeshFilter, p) for p in FAN_PARAMS + MESH_PARAMS
-]
+FILTER_PARAMS = (
+    [(FanCloudFilter, p) for p in FAN_PARAMS]
+    + [(FanCloudMeshFilter, p) for p in FAN_PARAMS + MESH_PARAMS]
+    + [(FanCloudEntropyFilter, p) for p in FAN_PARAMS + ENTROPY_PARAMS]
+    + [(FanCloudReduceFilter, p) for p in FAN_PARAMS + REDUCE_PARAMS]
+    + [(FanCloudSelectiveRefineFilter, p) for p in FanCloudSelectiveRefineFilter.PARAMETERS]
+)
 
 
 @pytest.mark.parametrize(("cls", "param"), FILTER_PARAMS,

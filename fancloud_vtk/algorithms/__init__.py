@@ -6,13 +6,18 @@ Imports numpy, ``vtkmodules`` and the core only, never pyvista, so ParaView
 
 from .base import FanCloudAlgorithm, run
 from .convert import fancloud_from_vtk, fancloud_to_vtk, is_fancloud
+from .entropy import FanCloudEntropyFilter
 from .fans import FanCloudFilter
 from .mesh import FanCloudMeshFilter
+from .reduce import FanCloudReduceFilter, FanCloudSelectiveRefineFilter
 
 __all__ = [
     "FanCloudAlgorithm",
+    "FanCloudEntropyFilter",
     "FanCloudFilter",
     "FanCloudMeshFilter",
+    "FanCloudReduceFilter",
+    "FanCloudSelectiveRefineFilter",
     "fancloud_from_vtk",
     "fancloud_to_vtk",
     "is_fancloud",

@@ -25,8 +25,9 @@ def _make_accessors(param: Param):
     def getter(self):
         return self._values[param.name]
 
-    def setter(self, value):
-        value = param.check(value)
+    def setter(self, *args):
+        # VTK style for vectors: SetWeights(1, 1, 50, 0) as well as SetWeights((1, 1, 50, 0))
+        value = param.check(args[0] if len(args) == 1 else args)
         if self._values[param.name] != value:
             self._values[param.name] = value
             self.Modified()

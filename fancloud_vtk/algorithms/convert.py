@@ -356,3 +356,135 @@ def _ply_ready(polydata, writer):
             writer.SetEnableAlpha(arr.GetNumberOfComponents() == 4)
             break
     return out
+
+
+# -- the three kinds of input of the entropy and reduction filters ------------------
+
+#: field array (a string) saying which kind of input a filter took
+INPUT_KIND = "fancloud_input"
+KIND_FANS, KIND_MESH, KIND_POINTS = "fan cloud", "triangle mesh", "point set"
+
+
+def triangles_of(dataset) -> np.ndarray | None:
+    """The dataset's surface cells as ``(m, 3)`` triangles, or ``None`` if it has none.
+
+    Polygons and triangle strips of a ``vtkPolyData`` are triangulated
+    (``vtkTriangleFilter``); vertices and lines are not surface cells.
+    """
+    if dataset is None or not dataset.IsA("vtkPolyData"):
+        return None
+    if dataset.GetNumberOfPolys() == 0 and dataset.GetNumberOfStrips() == 0:
+        return None
+    polys = dataset.GetPolys()
+    if dataset.GetNumberOfStrips() == 0 and polys.IsHomogeneous() == 3:
+        conn = vtk_to_numpy(polys.GetConnectivityArray())
+        return np.array(conn, dtype=np.int64).reshape(-1, 3)
+    from vtkmodules.vtkFiltersCore import vtkTriangleFilter
+
+    surface = vtkPolyData()
+    surface.SetPoints(dataset.GetPoints())
+    surface.SetPolys(polys)
+    surface.SetStrips(dataset.GetStrips())
+    tri = vtkTriangleFilter()
+    tri.PassVertsOff()
+    tri.PassLinesOff()
+    tri.SetInputData(surface)
+    tri.Update()
+    out = tri.GetOutput().GetPolys()
+    if out.GetNumberOfCells() == 0:
+        return None
+    conn = vtk_to_numpy(out.GetConnectivityArray())
+    return np.array(conn, dtype=np.int64).reshape(-1, 3)
+
+
+def input_fan_cloud(dataset, fan_values: dict, progress=None) -> tuple[FanCloud, str]:
+    """The fan cloud of a filter's input and which kind of input it was.
+
+    * a fan cloud (``fan_offsets``/``fan_ring`` arrays): its rings as they are;
+    * a triangle mesh (polys): every vertex's one-ring is its fan, its
+      ``Normals`` point array (if any) the normals;
+    * any other point set: the fans are built with ``fan_values``.
+    """
+    from fancloud_vtk.core.entropy import fan_cloud_of_mesh
+    from fancloud_vtk.core.fans import build_fans
+
+    if is_fancloud(dataset):
+        return fancloud_from_vtk(dataset), KIND_FANS
+    points = points_of(dataset)
+    arrays = point_arrays(dataset)
+    normals = arrays.pop(NORMALS, None)
+    if normals is not None and (normals.ndim != 2 or normals.shape[1] != 3):
+        arrays[NORMALS] = normals
+        normals = None
+    tri = triangles_of(dataset)
+    if tri is not None:
+        if normals is not None and not (np.linalg.norm(normals, axis=1) > 0).all():
+            normals = None  # "unknown" zero normals: take the mesh's own
+        return fan_cloud_of_mesh(points, tri, normals=normals, point_data=arrays), KIND_MESH
+    fc = build_fans(points, normals=normals, point_data=arrays, progress=progress, **fan_values)
+    return fc, KIND_POINTS
+
+
+def add_string_field(dataset, name: str, value: str) -> None:
+    """A one-value string field array (e.g. ``fancloud_input``)."""
+    from vtkmodules.vtkCommonCore import vtkStringArray
+
+    arr = vtkStringArray()
+    arr.SetName(name)
+    arr.InsertNextValue(value)
+    dataset.GetFieldData().AddArray(arr)
+
+
+def string_field(dataset, name: str) -> str | None:
+    """The first value of a string field array, or ``None``."""
+    arr = dataset.GetFieldData().GetAbstractArray(name)
+    if arr is None or not arr.IsA("vtkStringArray") or arr.GetNumberOfValues() == 0:
+        return None
+    return arr.GetValue(0)
+
+
+# -- the hierarchy of a reduction as vtkPolyData ----------------------------------
+
+HIERARCHY_PREFIX = "hierarchy_"
+
+
+def hierarchy_to_vtk(h) -> vtkPolyData:
+    """The finest fan cloud of a :class:`~fancloud_vtk.Hierarchy` plus field arrays
+    ``hierarchy_<name>`` (removal order, rings, detail, log, coarse level), the
+    weights and the method."""
+    out = fancloud_to_vtk(h.source)
+    fd = out.GetFieldData()
+    for name, arr in h._arrays().items():
+        arr = np.asarray(arr)
+        if arr.dtype == np.bool_:
+            arr = arr.astype(np.uint8)
+        fd.AddArray(_to_vtk_array(arr.reshape(len(arr), -1) if arr.ndim > 1 else arr,
+                                  HIERARCHY_PREFIX + name))
+    fd.AddArray(_to_vtk_array(np.array(h.weights, np.float64), HIERARCHY_PREFIX + "weights"))
+    add_string_field(out, HIERARCHY_PREFIX + "method", h.method)
+    return out
+
+
+def hierarchy_from_vtk(dataset):
+    """A :class:`~fancloud_vtk.Hierarchy` from ``vtkPolyData`` made by :func:`hierarchy_to_vtk`."""
+    from fancloud_vtk.core.reduction import _HIER_ARRAYS, Hierarchy
+
+    fd = dataset.GetFieldData()
+    arrays = {}
+    for name in (*_HIER_ARRAYS, "weights"):
+        arr = fd.GetArray(HIERARCHY_PREFIX + name)
+        if arr is None:
+            raise ValueError(f"not a saved hierarchy: no field array {HIERARCHY_PREFIX}{name}")
+        arrays[name] = np.array(vtk_to_numpy(arr), copy=True)
+    method = string_field(dataset, HIERARCHY_PREFIX + "method")
+    if method is None:
+        raise ValueError(f"not a saved hierarchy: no field array {HIERARCHY_PREFIX}method")
+    for name in ("rem_open", "ent_open", "coarse_open"):
+        arrays[name] = arrays[name].astype(bool)
+    weights = tuple(arrays.pop("weights").tolist())
+    fc = fancloud_from_vtk(dataset)
+    fc.point_data.pop(ORIGINAL_ID_NAME, None)
+    return Hierarchy.from_arrays(fc, arrays, weights, method)
+
+
+ORIGINAL_ID_NAME = "original_id"

@@ -538,3 +538,38 @@ def place(points, normals, order, rem_off, rem_ring, detail, r_from, r_to, moved
             normals[p, 1] = e[1] / s
             normals[p, 2] = e[2] / s
         moved[p] = True
+
+
+@njit(cache=True)
+def ring_normals(points, offsets, ring, normals):
+    """Newell normals of the rings, turned to the side of ``normals`` (kept where degenerate)."""
+    n = points.shape[0]
+    out = normals.copy()
+    for p in range(n):
+        k = offsets[p + 1] - offsets[p]
+        if k < 2:
+            continue
+        nb = ring[offsets[p]:offsets[p + 1]]
+        fr = local_frame(points, nb, k, normals[p, 0], normals[p, 1], normals[p, 2])
+        s = fr[3] * normals[p, 0] + fr[4] * normals[p, 1] + fr[5] * normals[p, 2]
+        sign = -1.0 if s < 0 else 1.0
+        out[p, 0] = sign * fr[3]
+        out[p, 1] = sign * fr[4]
+        out[p, 2] = sign * fr[5]
+    return out
+
+
+@njit(cache=True)
+def measure_detail(points, normals, order, rem_off, rem_ring):
+    """(r, 3): each removed point's offset in the local frame of its ring at removal time."""
+    r_count = order.shape[0]
+    out = np.empty((r_count, 3))
+    for r in range(r_count):
+        p = order[r]
+        nb = rem_ring[rem_off[r]:rem_off[r + 1]]
+        fr = local_frame(points, nb, len(nb), normals[p, 0], normals[p, 1], normals[p, 2])
+        d = _to_frame(fr, points[p, 0] - fr[0], points[p, 1] - fr[1], points[p, 2] - fr[2])
+        out[r, 0] = d[0]
+        out[r, 1] = d[1]
+        out[r, 2] = d[2]
+    return out

@@ -41,7 +41,7 @@ _HIER_ARRAYS = ("order", "rem_off", "rem_ring", "rem_open", "detail", "log_off",
                 "original_id")
 
 
-def _target(n: int, n_points, keep) -> int:
+def target_count(n: int, n_points=None, keep=None) -> int:
     """The number of points to keep, from exactly one of ``n_points`` and ``keep``."""
     if (n_points is None) == (keep is None):
         raise ValueError("give exactly one of n_points (a count) and keep (a fraction in (0, 1])")
@@ -107,7 +107,7 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
     """
     fc = as_fan_cloud(fancloud)
     n = fc.n_points
-    target = MIN_POINTS if n_points is None else _target(n, n_points, None)
+    target = MIN_POINTS if n_points is None else target_count(n, n_points, None)
     if method not in METHODS:
         raise ValueError(f"method must be 'entropy' or 'error', got {method!r}")
     w = check_weights(weights)
@@ -273,10 +273,39 @@ def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, metho
     (880, [...])
     """
     fc = as_fan_cloud(fancloud)
-    target = _target(fc.n_points, n_points, keep)
+    target = target_count(fc.n_points, n_points, keep)
     h = hierarchy(fc, target, weights=weights, method=method, colors=colors, progress=progress)
     out = h.level(target)
     return (out, h) if return_hierarchy else out
+
+
+def laplacian_smooth(fancloud: FanCloud, iterations: int = 1, factor: float = 0.5) -> FanCloud:
+    """A copy of the fan cloud with every point moved toward the centroid of its ring.
+
+    ``iterations`` steps of ``p += factor * (mean(ring) - p)`` (the global
+    smoothing of the paper's Figure 11); the rings stay, the normals follow
+    the rings' planes. Points with an empty ring do not move.
+    """
+    if not isinstance(fancloud, FanCloud):
+        raise TypeError(f"laplacian_smooth needs a FanCloud, got {type(fancloud).__name__}")
+    if isinstance(iterations, bool) or not isinstance(iterations, numbers.Integral) \
+            or iterations < 0:
+        raise ValueError(f"iterations must be a whole number >= 0, got {iterations!r}")
+    if not 0 < factor <= 1:
+        raise ValueError(f"factor must be in (0, 1], got {factor!r}")
+    out = fancloud.copy()
+    sizes = out.fan_sizes
+    owner = np.repeat(np.arange(out.n_points), sizes)
+    has = sizes > 0
+    for _ in range(int(iterations)):
+        centroid = np.stack([np.bincount(owner, out.points[out.ring, c], out.n_points)
+                             for c in range(3)], axis=1)
+        centroid[has] /= sizes[has, None]
+        out.points[has] += factor * (centroid[has] - out.points[has])
+    if iterations:
+        nrm = RK.ring_normals(out.points, out.offsets, out.ring, out.normals)
+        out.normals[:] = nrm
+    return out
 
 
 class Hierarchy:
@@ -465,6 +494,25 @@ class Hierarchy:
                      n - m, np.zeros(n, bool))
         R, rlen, ropen, active = self._state(m)
         return self._fan_cloud(pts, nrm, R, rlen, ropen, active)
+
+    def details(self, fancloud: FanCloud) -> np.ndarray:
+        """The local-frame detail of every removed point, measured on a full level.
+
+        ``fancloud``: the finest level (all points, e.g. ``level(n_points,
+        base=edited)``); returns ``(r, 3)``, row i for ``order[i]``: the
+        offset of the point from the centroid of its ring at removal time, in
+        that ring's frame (tangent, bitangent, normal). On the unedited
+        input it equals ``detail[:, :3]``.
+        """
+        if not isinstance(fancloud, FanCloud) or fancloud.n_points != self.n_points:
+            raise ValueError(f"details need the finest level ({self.n_points} points)")
+        ids = fancloud.point_data.get(ORIGINAL_ID)
+        index = np.arange(self.n_points) if ids is None else self._index_of(ids)
+        pts = np.empty_like(self.source.points)
+        nrm = np.empty_like(self.source.normals)
+        pts[index] = fancloud.points
+        nrm[index] = fancloud.normals
+        return RK.measure_detail(pts, nrm, self.order, self.rem_off, self.rem_ring)
 
     def _fan_cloud(self, pts, nrm, R, rlen, ropen, active) -> FanCloud:
         ids = np.flatnonzero(active)
