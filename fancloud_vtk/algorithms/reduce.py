@@ -63,7 +63,8 @@ class FanCloudReduceFilter(FanCloudAlgorithm):
         if values["mesh"]:
             if self._progress(0.9, "mesh"):
                 raise Cancelled("meshing was cancelled")
-            out = mesh_to_vtk(fan_cloud_to_mesh(small))
+            # its fans are re-formed local Delaunay rings already: mesh them as they are
+            out = mesh_to_vtk(fan_cloud_to_mesh(small, rings="fans"))
         else:
             out = fancloud_to_vtk(small)
         add_string_field(out, INPUT_KIND, kind)

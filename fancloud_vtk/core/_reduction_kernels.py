@@ -24,6 +24,8 @@ from ._mesh_kernels import _hull_ring, _tangent
 METHOD_ENTROPY = 0
 METHOD_ERROR = 1
 INF = np.inf
+#: a candidate whose normal makes more than 120 degrees with x's is not x's neighbour
+FACING = -0.5
 
 
 # -- indexed binary heap (key, index) ------------------------------------------------
@@ -196,7 +198,8 @@ def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, st
     m = 0
     stamp[x] = tag
     stamp[p] = tag
-    for src in (x, p):
+    for t in range(2):
+        src = x if t == 0 else p
         for a in range(rlen[src]):
             s = R[src, a]
             if stamp[s] == tag:
@@ -208,6 +211,9 @@ def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, st
     mm = 0
     for c in range(m):
         q = cand[c]
+        if (normals[q, 0] * normals[x, 0] + normals[q, 1] * normals[x, 1]
+                + normals[q, 2] * normals[x, 2]) < FACING:
+            continue  # the other side of a thin part: never a fan neighbour
         dx = points[q, 0] - points[x, 0]
         dy = points[q, 1] - points[x, 1]
         dz = points[q, 2] - points[x, 2]
