@@ -4,7 +4,10 @@ Loads the Stanford bunny shipped inside pymeshlab (points only), builds its
 fan cloud, writes it as ``.vtp``, renders it offscreen (shaded, and with its
 open fans marked) and prints a summary table. Then the triangle mesh of the
 fan cloud (paper section 4, its Figure 8): written as ``.ply``, rendered
-beside the fan cloud, and its stage counts and checks printed.
+beside the fan cloud, and its stage counts and checks printed. Then the
+reduction (section 5, Figure 9): the bunny reduced to 17.6% by distance only
+and with the shape weights, side by side; and the selective refinement of
+section 6 (Figure 11): reduced to 15%, smoothed, the head refined.
 """
 
 from __future__ import annotations
@@ -67,6 +70,77 @@ def render_mesh(fc, mesh, path: str, title: str = "") -> None:
     pl.close()
 
 
+#: the bunny's head (pymeshlab's bunny.obj coordinates), Figure 11's region of interest
+HEAD = ((0.1, 0.33, 0.36), 0.14)
+
+
+def render_panels(panels, path: str) -> None:
+    """Offscreen picture: one shaded mesh with edges per panel ``(title, fan cloud)``."""
+    import pyvista as pv
+    from vtkmodules.vtkCommonCore import vtkLogger
+
+    from fancloud_vtk.algorithms.convert import mesh_to_vtk
+    from fancloud_vtk.core.mesh import fan_cloud_to_mesh
+
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)  # see render_fancloud
+    pl = pv.Plotter(off_screen=True, shape=(1, len(panels)), window_size=(700 * len(panels), 700),
+                    border=False)
+    for i, (title, fc) in enumerate(panels):
+        pl.subplot(0, i)
+        pl.add_text(title, font_size=10)
+        mesh = fan_cloud_to_mesh(fc, rings="fans", self_intersections=False)
+        pl.add_mesh(pv.wrap(mesh_to_vtk(mesh)), color="#d8c8a8", show_edges=True,
+                    edge_color="#9c8f75", line_width=0.3, specular=0.3)
+    pl.link_views()
+    pl.camera_position = "xy"
+    pl.camera.zoom(1.3)
+    pl.screenshot(path)
+    pl.close()
+
+
+def reduction_panel(fc, out_dir: str, quiet: bool) -> dict:
+    """Figures 9 and 11 on the bunny: reductions side by side, selective refinement."""
+    from fancloud_vtk.cli import _print_rows, _Progress
+    from fancloud_vtk.core.reduction import hierarchy, laplacian_smooth, reduce
+
+    rows, out = [], {}
+    panels = [(f"input ({fc.n_points:,} points)", fc)]
+    for label, weights in (("distance only (1,0,0,0)", (1, 0, 0, 0)),
+                           ("shape (1,1,50,0)", (1, 1, 50, 0))):
+        progress = _Progress(f"reduce {label}", quiet)
+        t0 = time.perf_counter()
+        small = reduce(fc, keep=0.176, weights=weights, progress=progress)
+        elapsed = time.perf_counter() - t0
+        progress.close()
+        panels.append((f"17.6% by {label}: {small.n_points:,} points", small))
+        rows.append((f"reduced to 17.6%, {label}", f"{small.n_points:,} points, {elapsed:.2f} s"))
+        out[f"reduce_{weights}"] = {"points": small.n_points, "time": elapsed}
+    png = os.path.join(out_dir, "bunny_reduce.png")
+    render_panels(panels, png)
+    rows.append(("picture (Figure 9)", png))
+
+    target = round(0.15 * fc.n_points)
+    t0 = time.perf_counter()
+    h = hierarchy(fc, target)
+    coarse = h.level(target)
+    smooth = laplacian_smooth(coarse, 5)
+    refined = h.selective(HEAD, base=smooth)
+    elapsed = time.perf_counter() - t0
+    png11 = os.path.join(out_dir, "bunny_selective.png")
+    render_panels([(f"reduced to 15% ({coarse.n_points:,} points)", coarse),
+                   ("smoothed (5 Laplacian steps)", smooth),
+                   (f"head refined with its detail ({refined.n_points:,} points)", refined)],
+                  png11)
+    rows += [("selective refinement", f"{coarse.n_points:,} -> smoothed -> "
+              f"{refined.n_points:,} points (head), {elapsed:.2f} s"),
+             ("picture (Figure 11)", png11)]
+    out["selective"] = {"coarse": coarse.n_points, "refined": refined.n_points}
+    print()
+    print("reduction by entropy (paper sections 5 and 6, Figures 9 and 11)")
+    _print_rows(rows)
+    return {**out, "reduce_png": png, "selective_png": png11}
+
+
 def run_demo(out_dir: str = "fancloud_demo", quiet: bool = False) -> dict:
     """Run the demo; return the summary (also printed)."""
     from fancloud_vtk.algorithms.convert import mesh_to_vtk, write_mesh
@@ -107,6 +181,7 @@ def run_demo(out_dir: str = "fancloud_demo", quiet: bool = False) -> dict:
     print("triangle mesh of the fan cloud (paper section 4, Figure 8)")
     _print_mesh_summary(mesh, mesh_time, mesh_ply, extra=[("picture", mesh_png)])
     mesh_stats = {k: v for k, v in mesh.stats.items() if k != "timings"}
+    reduction = reduction_panel(fc, out_dir, quiet)
     return {**fc.summary(), "time": elapsed, "vtp": vtp, "png": png,
             "mesh": mesh_stats, "mesh_time": mesh_time, "mesh_ply": mesh_ply,
-            "mesh_png": mesh_png}
+            "mesh_png": mesh_png, "reduction": reduction}

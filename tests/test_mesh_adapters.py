@@ -444,6 +444,14 @@ def test_demo_writes_the_fans_and_the_mesh(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert "grown 2-manifold" in printed and "bunny_mesh.png" in printed
     assert "bunny_fans.vtp" in printed
+    # the reduction panel (Figures 9 and 11)
+    red = summary["reduction"]
+    assert red["reduce_(1, 0, 0, 0)"]["points"] == red["reduce_(1, 1, 50, 0)"]["points"] \
+        == round(0.176 * n)
+    assert red["selective"]["coarse"] == round(0.15 * n) < red["selective"]["refined"] < n
+    for key in ("reduce_png", "selective_png"):
+        assert (tmp_path / red[key].rsplit("/", 1)[-1]).stat().st_size > 1000, key
+    assert "Figure 11" in printed
 
 
 def test_write_mesh_ply_leaves_the_polydata_alone(expected, tmp_path):
