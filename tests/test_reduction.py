@@ -238,3 +238,30 @@ def test_bad_levels(sphere_fans):
         h.selective(np.zeros(10, bool))
     with pytest.raises(TypeError):
         reduce(np.zeros((100, 3)), 10)
+
+
+def test_same_result_on_one_and_two_threads(sphere_fans):
+    import numba
+
+    n_threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = reduce(sphere_fans, keep=0.2)
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        two = reduce(sphere_fans, keep=0.2)
+    finally:
+        numba.set_num_threads(n_threads)
+    assert fingerprint(*_arrays(one)) == fingerprint(*_arrays(two))
+
+
+@pytest.mark.parametrize("method", ["entropy", "error"])
+def test_exact_greedy_order(sphere_fans, method):
+    """``exact=True``: strictly one point at a time, lowest key first."""
+    h = hierarchy(sphere_fans, 800, method=method, exact=True)
+    out = reduce(sphere_fans, 800, method=method, exact=True)
+    assert fingerprint(*_arrays(out)) == fingerprint(*_arrays(h.level(800)))
+    assert out.n_points == 800
+    np.testing.assert_array_equal(h.level(4000).ring, sphere_fans.ring)
+    # the same kind of result as the rounds: a closed surface, near-uniform with distance
+    mesh = fan_cloud_to_mesh(out, rings="fans")
+    assert mesh.n_triangles == 2 * 800 - 4

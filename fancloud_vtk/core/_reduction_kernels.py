@@ -16,7 +16,7 @@ old rings of the fans it changed.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from ._entropy_kernels import point_cc, point_terms
 from ._mesh_kernels import _hull_ring, _tangent
@@ -579,3 +579,274 @@ def measure_detail(points, normals, order, rem_off, rem_ring):
         out[r, 1] = d[1]
         out[r, 2] = d[2]
     return out
+
+
+# -- the reduction in rounds -----------------------------------------------------------
+#
+# A round takes the lowest keys (a fixed fraction of the points left, in key
+# order) and accepts, lowest key first, every point whose neighbourhood N(p) =
+# {p} + ring(p) + the fans containing p meets no accepted point's: removals
+# that share no fan and read no ring another one changes, so they commute.
+# The accepted points are removed in index order (memory order): the fans
+# they change are re-formed in parallel, the log and the in-lists written in
+# order, the entropies of the fans around them recomputed in parallel.
+
+
+@njit(cache=True)
+def round_candidates(key, active, want):
+    """The ``want`` active points of lowest (key, index) with a finite key, in that order."""
+    n = key.shape[0]
+    ids = np.empty(n, np.int64)
+    vals = np.empty(n)
+    m = 0
+    for x in range(n):
+        if active[x] and key[x] < INF:
+            ids[m] = x
+            vals[m] = key[x]
+            m += 1
+    if m > want:
+        thr = np.partition(vals[:m].copy(), want - 1)[want - 1]
+        below = 0
+        for i in range(m):
+            if vals[i] < thr:
+                below += 1
+        room = want - below  # the points at the threshold: the smallest indices
+        mm = 0
+        for i in range(m):
+            if vals[i] < thr or (vals[i] == thr and room > 0):
+                if vals[i] == thr:
+                    room -= 1
+                ids[mm] = ids[i]
+                vals[mm] = vals[i]
+                mm += 1
+        m = mm
+    order = np.argsort(vals[:m], kind="mergesort")  # stable: equal keys by index
+    return ids[:m][order]
+
+
+@njit(cache=True)
+def accept_batch(cands, R, rlen, IN, nin, over, mark, tag):
+    """Lowest key first, the candidates whose neighbourhoods meet no accepted one's."""
+    out = np.empty(cands.shape[0], np.int64)
+    m = 0
+    for c in range(cands.shape[0]):
+        p = cands[c]
+        if over[p] or mark[p] == tag:
+            continue
+        clash = False
+        for a in range(rlen[p]):
+            if mark[R[p, a]] == tag:
+                clash = True
+                break
+        if not clash:
+            for i in range(nin[p]):
+                if mark[IN[p, i]] == tag:
+                    clash = True
+                    break
+        if clash:
+            continue
+        mark[p] = tag
+        for a in range(rlen[p]):
+            mark[R[p, a]] = tag
+        for i in range(nin[p]):
+            mark[IN[p, i]] = tag
+        out[m] = p
+        m += 1
+    return np.sort(out[:m])
+
+
+@njit(cache=True, parallel=True)
+def reform_batch(points, normals, R, rlen, ropen, IN, nin, acc, buf_off, stamps, tags):
+    """Phase A: the new fans of every point whose fan contains an accepted point.
+
+    Returns (buf, buf_len, buf_open, ok, frames): buf[buf_off[i] + j] the new
+    ring of IN[acc[i], j]; ok[i] False if some fan cannot be re-formed;
+    frames[i] the detail of acc[i] (offset and normal in its ring's frame).
+    ``stamps``: (chunks, n) scratch, one row per parallel chunk, with its
+    last tag in ``tags``.
+    """
+    n_acc = acc.shape[0]
+    width = R.shape[1]
+    total = buf_off[n_acc]
+    buf = np.empty((total, width), np.int32)
+    buf_len = np.empty(total, np.int64)
+    buf_open = np.empty(total, np.bool_)
+    ok = np.ones(n_acc, np.bool_)
+    frames = np.empty((n_acc, 6))
+    n_chunks = stamps.shape[0]
+    for ch in prange(n_chunks):
+        cap = 4 * width + 8
+        cand = np.empty(cap, np.int64)
+        xs = np.empty(cap)
+        ys = np.empty(cap)
+        ordr = np.empty(cap, np.int64)
+        hull = np.empty(cap + 1, np.int64)
+        stamp = stamps[ch]
+        tag = tags[ch]
+        for i in range((n_acc * ch) // n_chunks, (n_acc * (ch + 1)) // n_chunks):
+            p = acc[i]
+            for j in range(nin[p]):
+                x = IN[p, j]
+                tag += 1
+                h, op = _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, ordr,
+                                hull, stamp, tag, buf[buf_off[i] + j])
+                if h < 0:
+                    ok[i] = False
+                    break
+                buf_len[buf_off[i] + j] = h
+                buf_open[buf_off[i] + j] = op
+            k = rlen[p]
+            fr = local_frame(points, R[p], k, normals[p, 0], normals[p, 1], normals[p, 2])
+            d = _to_frame(fr, points[p, 0] - fr[0], points[p, 1] - fr[1], points[p, 2] - fr[2])
+            e = _to_frame(fr, normals[p, 0], normals[p, 1], normals[p, 2])
+            for c in range(3):
+                frames[i, c] = d[c]
+                frames[i, 3 + c] = e[c]
+        tags[ch] = tag
+    return buf, buf_len, buf_open, ok, frames
+
+
+@njit(cache=True)
+def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len,
+                 buf_open, ok, frames, limit, counters, order, detail, rem_off, rem_ring,
+                 rem_open, log_off, ent_x, ent_open, ent_off, ent_ring, stamp):
+    """Phase B, in index order: log and apply the first ``limit`` removals that can be made.
+
+    A point whose fans cannot all be re-formed stays, its key set to inf.
+    Returns the fans whose rings changed (each once).
+    """
+    changed = np.empty(buf_off[acc.shape[0]], np.int64)
+    n_changed = 0
+    counters[5] += 1
+    tag = counters[5]
+    done = 0
+    for i in range(acc.shape[0]):
+        p = acc[i]
+        if not ok[i]:
+            key[p] = INF
+            continue
+        if done == limit:
+            break
+        done += 1
+        r = counters[1]
+        k = rlen[p]
+        order[r] = p
+        for c in range(6):
+            detail[r, c] = frames[i, c]
+        for a in range(k):
+            rem_ring[counters[4] + a] = R[p, a]
+        counters[4] += k
+        rem_off[r + 1] = counters[4]
+        rem_open[r] = ropen[p]
+        n_aff = nin[p]
+        for j in range(n_aff):
+            x = IN[p, j]
+            e_i = counters[2]
+            ent_x[e_i] = x
+            ent_open[e_i] = ropen[x]
+            for a in range(rlen[x]):
+                ent_ring[counters[3] + a] = R[x, a]
+            counters[3] += rlen[x]
+            counters[2] += 1
+            ent_off[counters[2]] = counters[3]
+        log_off[r + 1] = counters[2]
+        counters[1] += 1
+        active[p] = False
+        counters[0] -= 1
+        key[p] = INF
+        # copy the affected list: the in-list of p empties as its fans change
+        first = n_changed
+        for j in range(n_aff):
+            x = IN[p, j]
+            changed[n_changed] = x
+            n_changed += 1
+        for a in range(k):
+            _in_remove(IN, nin, over, R[p, a], p)
+        for j in range(n_aff):
+            x = changed[first + j]
+            b = buf_off[i] + j
+            for a in range(rlen[x]):
+                _in_remove(IN, nin, over, R[x, a], x)
+            rlen[x] = buf_len[b]
+            ropen[x] = buf_open[b]
+            for a in range(buf_len[b]):
+                R[x, a] = buf[b, a]
+                _in_add(IN, nin, over, R[x, a], x)
+    # each changed fan once
+    m = 0
+    for i in range(n_changed):
+        x = changed[i]
+        if stamp[x] != tag:
+            stamp[x] = tag
+            changed[m] = x
+            m += 1
+    return changed[:m]
+
+
+@njit(cache=True)
+def around(changed, IN, nin, over, active, stamp, tag):
+    """The changed fans and every active fan that contains one of them (each once)."""
+    total = changed.shape[0]
+    for i in range(changed.shape[0]):
+        if not over[changed[i]]:
+            total += nin[changed[i]]
+    out = np.empty(total, np.int64)
+    m = 0
+    for i in range(changed.shape[0]):
+        x = changed[i]
+        if stamp[x] != tag:
+            stamp[x] = tag
+            out[m] = x
+            m += 1
+    for i in range(changed.shape[0]):
+        x = changed[i]
+        if over[x]:
+            continue
+        for j in range(nin[x]):
+            y = IN[x, j]
+            if active[y] and stamp[y] != tag:
+                stamp[y] = tag
+                out[m] = y
+                m += 1
+    return out[:m]
+
+
+@njit(cache=True, parallel=True)
+def update_terms(points, normals, colors, R, rlen, dist, curv, col, dbar, changed):
+    for i in prange(changed.shape[0]):
+        x = changed[i]
+        dist[x], curv[x], col[x] = point_terms(points, normals, colors, x, R[x], rlen[x], dbar)
+
+
+@njit(cache=True, parallel=True)
+def update_keys(points, normals, R, rlen, dist, curv, cc, col, key, w, method, dbar, ids,
+                with_cc):
+    for i in prange(ids.shape[0]):
+        y = ids[i]
+        if with_cc:
+            cc[y] = point_cc(points, curv, y, R[y], rlen[y], dbar)
+        value = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, y)
+        key[y] = INF if rlen[y] == 0 else value
+
+
+@njit(cache=True)
+def heap_of(key, active):
+    """An indexed heap of the active points (the inactive ones after them, outside it)."""
+    n = key.shape[0]
+    heap = np.empty(n, np.int64)
+    hpos = np.empty(n, np.int64)
+    m = 0
+    for x in range(n):
+        if active[x]:
+            heap[m] = x
+            m += 1
+    size = m
+    for x in range(n):
+        if not active[x]:
+            heap[m] = x
+            m += 1
+    for i in range(n):
+        hpos[heap[i]] = i
+    for i in range(size // 2 - 1, -1, -1):
+        _sift_down(heap, hpos, key, i, size)
+    return heap, hpos

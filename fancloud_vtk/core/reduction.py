@@ -67,7 +67,7 @@ def _report(progress, fraction, message):
 
 
 def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entropy", colors=None,
-              progress=None) -> Hierarchy:
+              exact=False, progress=None) -> Hierarchy:
     """The removal hierarchy of a fan cloud or triangle mesh, down to ``n_points``.
 
     Parameters
@@ -86,6 +86,13 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
         plane of its ring; the paper's Figure 10b).
     colors : None, str or numpy.ndarray, optional
         Colours for the colour term (see :func:`~fancloud_vtk.entropy`).
+    exact : bool, default: False
+        Remove strictly one point at a time, always the lowest key, from an
+        indexed heap (the paper's greedy order). Default: in rounds, each
+        taking the lowest keys (1/16 of the points left, lowest first) and
+        removing together those whose neighbourhoods do not overlap; the
+        same local operations, in parallel and in memory order, several
+        times faster (docs/entropy.md).
     progress : callable, optional
         ``progress(fraction, message)``; returning True cancels
         (:class:`~fancloud_vtk.Cancelled`).
@@ -155,16 +162,26 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
     ent_ring = np.empty(48 * n_remove + 64, np.int32)
     stamp = np.zeros(n, np.int64)
     counters = np.array([n, 0, 0, 0, 0, 0], np.int64)
-    chunk = max(1000, n_remove // 50)
-    while counters[1] < n_remove:
-        before = counters[1]
-        rem_ring, ent_x, ent_open, ent_off, ent_ring = RK.reduce_steps(
-            pts, nrm, col, np.array(w), dbar, METHODS[method], R, rlen, ropen, active, IN, nin,
-            over, dist, curv, cc, colt, key, heap, hpos, counters, chunk, target, order, detail,
-            rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off, ent_ring, stamp)
-        _report(progress, counters[1] / max(n_remove, 1), "reduction")
-        if counters[1] == before:
-            break  # every remaining point is blocked
+    wa = np.array(w)
+    if exact:
+        chunk = max(1000, n_remove // 50)
+        while counters[1] < n_remove:
+            before = counters[1]
+            rem_ring, ent_x, ent_open, ent_off, ent_ring = RK.reduce_steps(
+                pts, nrm, col, wa, dbar, METHODS[method], R, rlen, ropen, active, IN, nin,
+                over, dist, curv, cc, colt, key, heap, hpos, counters, chunk, target, order,
+                detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off, ent_ring,
+                stamp)
+            _report(progress, counters[1] / max(n_remove, 1), "reduction")
+            if counters[1] == before:
+                break  # every remaining point is blocked
+    else:
+        logs = _Logs(rem_ring, ent_x, ent_open, ent_off, ent_ring)
+        _rounds(pts, nrm, col, wa, dbar, METHODS[method], R, rlen, ropen, active, IN, nin, over,
+                dist, curv, cc, colt, key, counters, n_remove, order, detail, rem_off, rem_open,
+                log_off, logs, stamp, progress)
+        rem_ring, ent_x, ent_open, ent_off, ent_ring = (logs.rem_ring, logs.ent_x, logs.ent_open,
+                                                        logs.ent_off, logs.ent_ring)
     r = int(counters[1])
     if n_points is not None and r < n_remove:
         raise FanCloudInputError(
@@ -208,6 +225,83 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
     return h
 
 
+#: a round of the reduction looks at this fraction of the points left (lowest keys first)
+ROUND_FRACTION = 1 / 16
+
+
+class _Logs:
+    """The growing log arrays of a reduction in rounds."""
+
+    def __init__(self, rem_ring, ent_x, ent_open, ent_off, ent_ring):
+        self.rem_ring, self.ent_x, self.ent_open = rem_ring, ent_x, ent_open
+        self.ent_off, self.ent_ring = ent_off, ent_ring
+
+    @staticmethod
+    def _fit(arr, need):
+        if need <= len(arr):
+            return arr
+        out = np.empty(max(need, 2 * len(arr)), arr.dtype)
+        out[: len(arr)] = arr
+        return out
+
+    def reserve(self, counters, n_rem, n_ent, n_ent_ring):
+        self.rem_ring = self._fit(self.rem_ring, counters[4] + n_rem)
+        self.ent_x = self._fit(self.ent_x, counters[2] + n_ent)
+        self.ent_open = self._fit(self.ent_open, counters[2] + n_ent)
+        self.ent_off = self._fit(self.ent_off, counters[2] + n_ent + 1)
+        self.ent_ring = self._fit(self.ent_ring, counters[3] + n_ent_ring)
+
+
+def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, over, dist, curv,
+            cc, colt, key, counters, n_remove, order, detail, rem_off, rem_open, log_off, logs,
+            stamp, progress):
+    """The reduction in rounds (see ``_reduction_kernels``): each round accepts, lowest key
+    first, the candidates whose neighbourhoods do not overlap, and removes them together."""
+    import numba
+
+    n = len(pts)
+    n_chunks = 2 * numba.get_num_threads()
+    stamps = np.zeros((n_chunks, n), np.int64)
+    tags = np.zeros(n_chunks, np.int64)
+    width = R.shape[1]
+    with_cc = method == RK.METHOD_ENTROPY
+    while counters[1] < n_remove:
+        want = max(64, int(counters[0] * ROUND_FRACTION))
+        cands = RK.round_candidates(key, active, want)
+        if len(cands) == 0:
+            break  # every remaining point is blocked
+        counters[5] += 1
+        acc = RK.accept_batch(cands, R, rlen, IN, nin, over, stamp, counters[5])
+        if len(acc) == 0:
+            # only points with overflowing in-lists left: one at a time
+            heap, hpos = RK.heap_of(key, active)
+            RK.reduce_steps(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin,
+                            over, dist, curv, cc, colt, key, heap, hpos, counters, 1,
+                            n - n_remove, order, detail, rem_off, logs.rem_ring, rem_open,
+                            log_off, logs.ent_x, logs.ent_open, logs.ent_off, logs.ent_ring,
+                            stamp)
+            continue
+        aff = nin[acc].astype(np.int64)
+        buf_off = np.zeros(len(acc) + 1, np.int64)
+        np.cumsum(aff, out=buf_off[1:])
+        logs.reserve(counters, len(acc) * width, int(buf_off[-1]), int(buf_off[-1]) * width)
+        buf, buf_len, buf_open, ok, frames = RK.reform_batch(pts, nrm, R, rlen, ropen, IN, nin,
+                                                             acc, buf_off, stamps, tags)
+        changed = RK.commit_batch(
+            R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len, buf_open, ok,
+            frames, n_remove - counters[1], counters, order, detail, rem_off, logs.rem_ring,
+            rem_open, log_off, logs.ent_x, logs.ent_open, logs.ent_off, logs.ent_ring, stamp)
+        RK.update_terms(pts, nrm, col, R, rlen, dist, curv, colt, dbar, changed)
+        if with_cc:
+            counters[5] += 1
+            ids = RK.around(changed, IN, nin, over, active, stamp, counters[5])
+        else:
+            ids = changed
+        RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, w, method, dbar, ids,
+                       with_cc)
+        _report(progress, counters[1] / max(n_remove, 1), "reduction")
+
+
 def _gather_rings(fc: FanCloud, perm: np.ndarray) -> np.ndarray:
     """The rings of the points in ``perm`` order, concatenated (input indices)."""
     sizes = fc.fan_sizes[perm]
@@ -217,7 +311,7 @@ def _gather_rings(fc: FanCloud, perm: np.ndarray) -> np.ndarray:
 
 
 def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, method="entropy",
-           colors=None, return_hierarchy=False, progress=None):
+           colors=None, exact=False, return_hierarchy=False, progress=None):
     """Reduce a fan cloud (or triangle mesh) to ``n_points`` points by entropy (section 5).
 
     Repeatedly removes the point of lowest entropy (or, with
@@ -242,6 +336,9 @@ def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, metho
         What the next removal minimises.
     colors : None, str or numpy.ndarray, optional
         Colours for the colour term (default: the input's colour array).
+    exact : bool, default: False
+        One point at a time from a heap instead of in rounds (see
+        :func:`hierarchy`).
     return_hierarchy : bool, default: False
         Also return the :class:`Hierarchy` of the removals.
     progress : callable, optional
@@ -274,7 +371,8 @@ def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, metho
     """
     fc = as_fan_cloud(fancloud)
     target = target_count(fc.n_points, n_points, keep)
-    h = hierarchy(fc, target, weights=weights, method=method, colors=colors, progress=progress)
+    h = hierarchy(fc, target, weights=weights, method=method, colors=colors, exact=exact,
+                  progress=progress)
     out = h.level(target)
     return (out, h) if return_hierarchy else out
 
