@@ -262,14 +262,14 @@ class FanCloudAccessor:
         return _run(FanCloudReduceFilter(**values), self._dataset, progress_bar, "Reducing")
 
     def hierarchy(self, n_points=None, *, weights=(1.0, 1.0, 50.0, 0.0), method="entropy",
-                  color_array="", **fan_params):
+                  color_array="", exact=False, **fan_params):
         """The levels of detail of the reduction (paper section 6).
 
         Parameters
         ----------
         n_points : int, optional
             The coarsest level to compute (default: as far as it goes).
-        weights, method, color_array
+        weights, method, color_array, exact
             As for :meth:`reduce`.
         **fan_params
             Fan parameters (``k``, ...) for a plain point set.
@@ -295,7 +295,7 @@ class FanCloudAccessor:
 
         fan_values = check_params(FAN_PARAMS, fan_params)
         check_params(REDUCE_PARAMS, {"weights": weights, "method": method,
-                                     "color_array": color_array})
+                                     "color_array": color_array, "exact": exact})
         fc, _ = input_fan_cloud(_point_set(self._dataset), fan_values)
         return hierarchy(fc, n_points, weights=weights, method=method,
-                         colors=color_array or None)
+                         colors=color_array or None, exact=exact)

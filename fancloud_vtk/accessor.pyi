@@ -98,6 +98,7 @@ class FanCloudAccessor:
         weights: tuple[float, float, float, float] = (1.0, 1.0, 50.0, 0.0),
         method: Literal["entropy", "error"] = "entropy",
         color_array: str = "",
+        exact: bool = False,
         mesh: bool = False,
         progress_bar: bool = False,
     ) -> pv.PolyData:
@@ -110,6 +111,7 @@ class FanCloudAccessor:
         weights: tuple[float, float, float, float] = (1.0, 1.0, 50.0, 0.0),
         method: Literal["entropy", "error"] = "entropy",
         color_array: str = "",
+        exact: bool = False,
         **fan_params: object,
     ) -> Hierarchy:
         """The levels of detail of the reduction (paper section 6): a Hierarchy."""

@@ -255,7 +255,8 @@ def cmd_reduce(args) -> int:
     progress = _Progress("reduce", args.quiet)
     try:
         small = reduce(fc, n_points=args.n_points, keep=args.keep, weights=args.weights,
-                       method=args.method, colors=args.color_array or None, progress=progress)
+                       method=args.method, colors=args.color_array or None, exact=args.exact,
+                       progress=progress)
     finally:
         progress.close()
     t2 = time.perf_counter()

@@ -213,6 +213,9 @@ REDUCE_PARAMS: tuple[Param, ...] = (
         choices=("entropy", "error"),
     ),
     _COLOR_ARRAY,
+    Param("exact", "bool", False,
+          "remove strictly one point at a time, lowest key first, from a heap (the paper's "
+          "order; slower) instead of in rounds of non-overlapping lowest-key removals"),
     Param("mesh", "bool", False,
           "output the triangle mesh of the reduced fan cloud (fan_cloud_to_mesh) instead of "
           "the fan cloud"),

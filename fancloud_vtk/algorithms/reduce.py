@@ -23,7 +23,7 @@ def _amount(values: dict) -> dict:
 
 def _reduce_values(values: dict) -> dict:
     return {"weights": values["weights"], "method": values["method"],
-            "colors": values["color_array"] or None}
+            "colors": values["color_array"] or None, "exact": values["exact"]}
 
 
 @with_parameters(FAN_PARAMS + REDUCE_PARAMS)
