@@ -8,9 +8,11 @@ their own ring and the removed point's ring (no neighbour search), as the
 local Delaunay ring in their tangent plane; the entropies of the points
 whose terms change are recomputed and their keys updated in an indexed
 binary heap (ties broken by the smaller index, so the order is
-deterministic). Every removal is logged so that the levels of detail can be
-walked back: the removed point's ring and local frame coordinates, and the
-old rings of the fans it changed.
+deterministic). As in the paper, the entropy is recomputed for the re-formed
+fans; M_cc of a fan that did not change keeps its value until it does.
+Every removal is logged so that the levels of detail can be walked back:
+the removed point's ring and local frame coordinates, and the old rings of
+the fans it changed.
 """
 
 from __future__ import annotations
@@ -371,7 +373,7 @@ def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, activ
     new_rings = np.empty((aff.shape[0], width), np.int32)
     new_len = np.empty(aff.shape[0], np.int64)
     new_open = np.empty(aff.shape[0], np.bool_)
-    upd = np.empty(aff.shape[0] * (IN.shape[1] + 1) + 1, np.int64)
+    upd = np.empty(aff.shape[0] + 1, np.int64)
     size = counters[0]
     steps = 0
     while steps < max_steps and size > target:
@@ -461,7 +463,7 @@ def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, activ
             for a in range(new_len[i]):
                 R[x, a] = new_rings[i, a]
                 _in_add(IN, nin, over, R[x, a], x)
-        # entropies: the terms of the changed fans, M_cc also of the fans around them
+        # entropies of the re-formed fans (the paper's 'recompute M for them')
         counters[5] += 1
         tag = counters[5]
         n_upd = 0
@@ -473,17 +475,6 @@ def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, activ
                 stamp[x] = tag
                 upd[n_upd] = x
                 n_upd += 1
-        if method == METHOD_ENTROPY:
-            for i in range(n_aff):
-                x = aff[i]
-                if over[x]:
-                    continue
-                for j in range(nin[x]):
-                    y = IN[x, j]
-                    if stamp[y] != tag and n_upd < upd.shape[0]:
-                        stamp[y] = tag
-                        upd[n_upd] = y
-                        n_upd += 1
         for i in range(n_upd):
             y = upd[i]
             if not active[y]:
@@ -589,7 +580,7 @@ def measure_detail(points, normals, order, rem_off, rem_ring):
 # that share no fan and read no ring another one changes, so they commute.
 # The accepted points are removed in index order (memory order): the fans
 # they change are re-formed in parallel, the log and the in-lists written in
-# order, the entropies of the fans around them recomputed in parallel.
+# order, the entropies of the re-formed fans recomputed in parallel.
 
 
 @njit(cache=True)
@@ -781,34 +772,6 @@ def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, 
             changed[m] = x
             m += 1
     return changed[:m]
-
-
-@njit(cache=True)
-def around(changed, IN, nin, over, active, stamp, tag):
-    """The changed fans and every active fan that contains one of them (each once)."""
-    total = changed.shape[0]
-    for i in range(changed.shape[0]):
-        if not over[changed[i]]:
-            total += nin[changed[i]]
-    out = np.empty(total, np.int64)
-    m = 0
-    for i in range(changed.shape[0]):
-        x = changed[i]
-        if stamp[x] != tag:
-            stamp[x] = tag
-            out[m] = x
-            m += 1
-    for i in range(changed.shape[0]):
-        x = changed[i]
-        if over[x]:
-            continue
-        for j in range(nin[x]):
-            y = IN[x, j]
-            if active[y] and stamp[y] != tag:
-                stamp[y] = tag
-                out[m] = y
-                m += 1
-    return out[:m]
 
 
 @njit(cache=True, parallel=True)

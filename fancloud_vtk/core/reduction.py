@@ -292,12 +292,7 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
             frames, n_remove - counters[1], counters, order, detail, rem_off, logs.rem_ring,
             rem_open, log_off, logs.ent_x, logs.ent_open, logs.ent_off, logs.ent_ring, stamp)
         RK.update_terms(pts, nrm, col, R, rlen, dist, curv, colt, dbar, changed)
-        if with_cc:
-            counters[5] += 1
-            ids = RK.around(changed, IN, nin, over, active, stamp, counters[5])
-        else:
-            ids = changed
-        RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, w, method, dbar, ids,
+        RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, w, method, dbar, changed,
                        with_cc)
         _report(progress, counters[1] / max(n_remove, 1), "reduction")
 
