@@ -400,6 +400,30 @@ def _last_line(path: str) -> str:
     return (fatal or lines or ["no output on stderr"])[-1][:300]
 
 
+def _child_status(method, code, child: dict, err_path: str, timeout: float, times: list,
+                  repeat: int, requires: dict | None = None) -> tuple[str, str]:
+    """``(status, message)`` of a method's process from its exit code and ``result.json``.
+
+    ``status`` is ``ok``, ``missing``, ``failed``, ``crashed`` or ``timeout``;
+    ``times`` are the timed runs that finished (a timeout after one is ``ok``).
+    """
+    phase = "while timed" if child.get("timed_start_epoch") else "while loading or warming up"
+    if code is None:
+        if not times:
+            return "timeout", f"timed out after {timeout:g} s ({phase})"
+        return "ok", f"ok ({len(times)} of {repeat} runs before the {timeout:g} s timeout)"
+    if code < 0:
+        return "crashed", f"crashed ({_signal_name(code)}, {phase}): {_last_line(err_path)}"
+    if child.get("status") == "missing":
+        need = (REQUIRES if requires is None else requires).get(method.name, method.loader)
+        return "missing", f"missing: {need} not available ({child['error']})"
+    if child.get("status") == "failed":
+        return "failed", f"failed: {child['error']}"
+    if code != 0 or child.get("status") != "ok":
+        return "failed", f"failed (exit {code}): {_last_line(err_path)}"
+    return "ok", "ok"
+
+
 def run_method(method, points_path: str, work_dir: str, *, timeout: float, repeat: int = 1,
                warmup: int | None = None) -> dict:
     """Run one method in a fresh process (:func:`child_main`), with a timeout.
@@ -434,26 +458,11 @@ def run_method(method, points_path: str, work_dir: str, *, timeout: float, repea
            "time": min(times) if times else None, "warmup_time": child.get("warmup_time"),
            "wall_time": wall, "exit_code": code, "info": child.get("info", {})}
     started = child.get("timed_start_epoch")
-    phase = "while timed" if started else "while loading or warming up"
-    if code is None:
-        status = "ok" if times else "timeout"
-        if started and not times:  # the timed run took at least this long
-            res["time_lower_bound"] = killed_epoch - started
-        message = (f"timed out after {timeout:g} s ({phase})" if not times else
-                   f"ok ({len(times)} of {repeat} runs before the {timeout:g} s timeout)")
-    elif code < 0:
-        status, message = "crashed", (f"crashed ({_signal_name(code)}, {phase}): "
-                                      f"{_last_line(err_path)}")
-    elif child.get("status") == "missing":
-        need = REQUIRES.get(method.name, method.loader)
-        status, message = "missing", f"missing: {need} not available ({child['error']})"
-    elif child.get("status") == "failed":
-        status, message = "failed", f"failed: {child['error']}"
-        res["traceback"] = child.get("traceback")
-    elif code != 0 or child.get("status") != "ok":
-        status, message = "failed", f"failed (exit {code}): {_last_line(err_path)}"
-    else:
-        status, message = "ok", "ok"
+    if code is None and started and not times:  # the timed run took at least this long
+        res["time_lower_bound"] = killed_epoch - started
+    status, message = _child_status(method, code, child, err_path, timeout, times, repeat)
+    if status == "failed" and child.get("traceback"):
+        res["traceback"] = child["traceback"]
     res.update(status=status, message=message)
     mesh_path = os.path.join(out_dir, "mesh.npz")
     if status == "ok" and os.path.isfile(mesh_path):
@@ -462,6 +471,412 @@ def run_method(method, points_path: str, work_dir: str, *, timeout: float, repea
     elif status == "ok":
         res.update(status="failed", message="failed: the method wrote no mesh")
     return res
+
+
+
+# == ``fancloud bench reduce``: the reduction methods ======================================
+#
+# A reduction loader returns ``run(data, target)``. ``data`` is a dict: ``points``
+# ``(n, 3)``, ``triangles`` ``(m, 3)`` (the input mesh), ``colors`` (``(n, 3)`` uint8 or
+# None) and ``from_points`` (True: the input is the points, the mesh is what the peers
+# get). ``target`` is the number of vertices to keep. ``run`` returns a dict:
+# ``vertices``, ``triangles`` (``(0, 3)`` for a point-only result), optionally ``colors``
+# (per output vertex, uint8, when the method carries them), ``original_id`` (when the
+# vertices are input points), ``time`` (the seconds that count, when not the whole call)
+# and ``info`` (``points_only``: True for a point set, whose triangles are none by design).
+
+
+def _ours_reducer(weights, method="entropy"):
+    from fancloud_vtk import build_fans, fan_cloud_of_mesh, fan_cloud_to_mesh, reduce
+
+    def run(data, target):
+        colors = data.get("colors")
+        pdata = {"RGB": colors} if colors is not None else None
+        t0 = time.perf_counter()
+        if data["from_points"]:
+            fc = build_fans(data["points"], k=K, point_data=pdata)
+            prepare = "build_fans"
+        else:
+            fc = fan_cloud_of_mesh(data["points"], data["triangles"], point_data=pdata)
+            prepare = "fan_cloud_of_mesh"
+        t1 = time.perf_counter()
+        small = reduce(fc, target, weights=weights, method=method)
+        t2 = time.perf_counter()
+        # its fans are re-formed Delaunay rings: meshed as they are (docs/entropy.md)
+        mesh = fan_cloud_to_mesh(small, rings="fans", self_intersections=False)
+        t3 = time.perf_counter()
+        out_colors = mesh.point_data.get("RGB", small.point_data.get("RGB"))
+        if len(mesh.points) != small.n_points:  # not expected: keep the ids only if they fit
+            out_colors = None
+        return {"vertices": mesh.points, "triangles": mesh.triangles, "colors": out_colors,
+                "original_id": small.point_data["original_id"]
+                if len(mesh.points) == small.n_points else None,
+                "time": t2 - t1,
+                "info": {"prepare": prepare, "prepare_time": t1 - t0, "reduce_time": t2 - t1,
+                         "to_mesh_time": t3 - t2, "kept_points": int(small.n_points)}}
+
+    return run
+
+
+def load_reduce_uniform():
+    """Ours: entropy with weights (1, 0, 0, 0) (the paper's Figure 9a)."""
+    return _ours_reducer((1.0, 0.0, 0.0, 0.0))
+
+
+def load_reduce_shape():
+    """Ours: entropy with weights (1, 1, 50, 0) (the default; Figure 9b)."""
+    return _ours_reducer((1.0, 1.0, 50.0, 0.0))
+
+
+def load_reduce_colour():
+    """Ours: entropy with weights (1, 1, 50, 1) and the input's colours."""
+    return _ours_reducer((1.0, 1.0, 50.0, 1.0))
+
+
+def load_reduce_error():
+    """Ours: ``method='error'`` (the paper's Figure 10b)."""
+    return _ours_reducer((1.0, 1.0, 50.0, 0.0), method="error")
+
+
+def triangle_target(n_points: int, n_triangles: int, target: int) -> int:
+    """Triangles to ask a mesh decimator for to keep about ``target`` vertices.
+
+    The input's triangles per vertex times ``target`` (2 on a closed mesh,
+    fewer on an open one): decimators count triangles, not vertices.
+    """
+    return max(1, int(round(n_triangles * target / n_points)))
+
+
+def load_fast_simplification():
+    """fast-simplification ``simplify`` with ``target_count`` (triangles)."""
+    import fast_simplification
+
+    def run(data, target):
+        pts, tri = data["points"], data["triangles"]
+        count = triangle_target(len(pts), len(tri), target)
+        v, f = fast_simplification.simplify(pts, tri, target_count=count)
+        return {"vertices": v, "triangles": f, "info": {"target_count": count}}
+
+    return run
+
+
+def _pymeshlab_mesh(data):
+    import pymeshlab
+
+    ms = pymeshlab.MeshSet()
+    kwargs = {}
+    if data.get("colors") is not None:
+        rgb = np.asarray(data["colors"], dtype=np.float64)[:, :3] / 255.0
+        kwargs["v_color_matrix"] = np.column_stack([rgb, np.ones(len(rgb))])
+    ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.ascontiguousarray(data["points"], np.float64),
+                               face_matrix=np.ascontiguousarray(data["triangles"], np.int32),
+                               **kwargs))
+    return ms
+
+
+def _pymeshlab_result(ms, data, **info):
+    m = ms.current_mesh()
+    out = {"vertices": m.vertex_matrix(), "triangles": m.face_matrix(), "info": info}
+    if data.get("colors") is not None and m.has_vertex_color():
+        out["colors"] = np.clip(np.rint(m.vertex_color_matrix()[:, :3] * 255), 0, 255)
+    return out
+
+
+def _quadric_reducer(filter_name: str, **params):
+    import pymeshlab  # noqa: F401
+
+    def run(data, target):
+        ms = _pymeshlab_mesh(data)
+        count = triangle_target(len(data["points"]), len(data["triangles"]), target)
+        getattr(ms, filter_name)(targetfacenum=count, **params)
+        return _pymeshlab_result(ms, data, targetfacenum=count, **params)
+
+    return run
+
+
+def load_quadric():
+    """pymeshlab quadric edge collapse, default parameters (optimal placement on)."""
+    return _quadric_reducer("meshing_decimation_quadric_edge_collapse")
+
+
+#: the shape-preserving options of the quadric edge collapse (variant ``quadric-normal``)
+QUADRIC_SHAPE = {"preservenormal": True, "preserveboundary": True, "preservetopology": True,
+                 "optimalplacement": True, "planarquadric": True}
+
+
+def load_quadric_normal():
+    """pymeshlab quadric edge collapse, preserving normals, boundary and topology."""
+    return _quadric_reducer("meshing_decimation_quadric_edge_collapse", **QUADRIC_SHAPE)
+
+
+def load_quadric_texture():
+    """pymeshlab's texture-aware quadric edge collapse (needs per-wedge texture coords)."""
+    return _quadric_reducer("meshing_decimation_quadric_edge_collapse_with_texture")
+
+
+def load_poisson_disk():
+    """pymeshlab Poisson-disk point simplification (``generate_simplified_point_cloud``)."""
+    import pymeshlab  # noqa: F401
+
+    def run(data, target):
+        ms = _pymeshlab_mesh(data)
+        ms.generate_simplified_point_cloud(samplenum=int(target))
+        out = _pymeshlab_result(ms, data, samplenum=int(target), points_only=True)
+        out["triangles"] = np.empty((0, 3), np.int64)
+        return out
+
+    return run
+
+
+def load_vtk_quadric():
+    """VTK vtkQuadricDecimation with a target reduction of the triangles."""
+    from vtkmodules.util.numpy_support import (
+        numpy_to_vtk,
+        numpy_to_vtkIdTypeArray,
+        vtk_to_numpy,
+    )
+    from vtkmodules.vtkCommonCore import vtkPoints
+    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
+    from vtkmodules.vtkFiltersCore import vtkQuadricDecimation
+
+    def run(data, target):
+        pts, tri = data["points"], data["triangles"]
+        count = triangle_target(len(pts), len(tri), target)
+        reduction = 1.0 - count / len(tri)
+        vp = vtkPoints()
+        vp.SetData(numpy_to_vtk(np.ascontiguousarray(pts, dtype=np.float64), deep=True))
+        polys = vtkCellArray()
+        polys.SetData(3, numpy_to_vtkIdTypeArray(
+            np.ascontiguousarray(tri, dtype=np.int64).ravel(), deep=True))
+        mesh = vtkPolyData()
+        mesh.SetPoints(vp)
+        mesh.SetPolys(polys)
+        dec = vtkQuadricDecimation()
+        dec.SetInputData(mesh)
+        dec.SetTargetReduction(reduction)
+        dec.Update()
+        out = dec.GetOutput()
+        conn = vtk_to_numpy(out.GetPolys().GetConnectivityArray())
+        verts = vtk_to_numpy(out.GetPoints().GetData()) if out.GetNumberOfPoints() else \
+            np.empty((0, 3))
+        return {"vertices": verts, "triangles": conn.reshape(-1, 3),
+                "info": {"target_reduction": reduction}}
+
+    return run
+
+
+#: ``fancloud bench reduce``'s methods; ``ours-*`` first, ``ours-shape`` the default weights.
+REDUCE_METHODS = {m.name: m for m in (
+    Method("ours-uniform", "ours entropy (1,0,0,0)", f"{_HERE}:load_reduce_uniform",
+           "reduce(fc, target, weights=(1, 0, 0, 0))"),
+    Method("ours-shape", "ours entropy (1,1,50,0)", f"{_HERE}:load_reduce_shape",
+           "reduce(fc, target, weights=(1, 1, 50, 0))"),
+    Method("ours-colour", "ours entropy (1,1,50,1) + colour", f"{_HERE}:load_reduce_colour",
+           "reduce(fc, target, weights=(1, 1, 50, 1)) with the input's RGB (only on data "
+           "with colour)"),
+    Method("ours-error", "ours error", f"{_HERE}:load_reduce_error",
+           "reduce(fc, target, method='error')"),
+    Method("fast-simplification", "fast-simplification", f"{_HERE}:load_fast_simplification",
+           "fast_simplification.simplify(points, triangles, target_count=round(m * target / n))",
+           new_points=True),
+    Method("quadric", "pymeshlab quadric edge collapse", f"{_HERE}:load_quadric",
+           "meshing_decimation_quadric_edge_collapse(targetfacenum=round(m * target / n)), "
+           "defaults (optimalplacement on, qualitythr 0.3)", new_points=True),
+    Method("quadric-normal", "pymeshlab quadric edge collapse, shape options",
+           f"{_HERE}:load_quadric_normal",
+           "meshing_decimation_quadric_edge_collapse(targetfacenum=..., "
+           + ", ".join(f"{k}={v}" for k, v in QUADRIC_SHAPE.items()) + ")", new_points=True),
+    Method("quadric-texture", "pymeshlab quadric edge collapse with texture",
+           f"{_HERE}:load_quadric_texture",
+           "meshing_decimation_quadric_edge_collapse_with_texture(targetfacenum=...) (the "
+           "texture-aware variant: needs per-wedge texture coordinates; pymeshlab has no "
+           "colour-aware quadric variant)", new_points=True),
+    Method("poisson-disk", "pymeshlab Poisson-disk points", f"{_HERE}:load_poisson_disk",
+           "generate_simplified_point_cloud(samplenum=target), defaults (exactnumflag off; "
+           "a point set: no triangles)"),
+    Method("vtk-quadric", "VTK vtkQuadricDecimation", f"{_HERE}:load_vtk_quadric",
+           "vtkQuadricDecimation, SetTargetReduction(1 - round(m * target / n) / m), defaults",
+           new_points=True),
+)}
+
+#: what a missing reduction method needs
+REDUCE_REQUIRES = {"fast-simplification": "fast-simplification (pip install "
+                   "fast-simplification)", "quadric": "pymeshlab", "quadric-normal": "pymeshlab",
+                   "quadric-texture": "pymeshlab", "poisson-disk": "pymeshlab",
+                   "vtk-quadric": "vtk", **{k: "fancloud_vtk.reduce" for k in
+                                            ("ours-uniform", "ours-shape", "ours-colour",
+                                             "ours-error")}}
+
+
+def reduce_method_for(spec: str) -> Method:
+    """A registered reduction method by name, or a ``module:function`` loader."""
+    if spec in REDUCE_METHODS:
+        return REDUCE_METHODS[spec]
+    if ":" in spec:
+        return Method(spec, spec, spec, f"{spec} (user loader)")
+    raise ValueError(f"unknown method {spec!r}: one of {', '.join(REDUCE_METHODS)} or "
+                     "module:function")
+
+
+def load_reduce_data(path: str) -> dict:
+    """The ``data`` dict of a reduction loader from the ``.npz`` the benchmark wrote."""
+    with np.load(path) as z:
+        colors = z["colors"]
+        return {"points": z["points"], "triangles": z["triangles"],
+                "colors": colors if len(colors) else None,
+                "from_points": bool(z["from_points"])}
+
+
+def save_reduce_data(path: str, points, triangles, colors, from_points: bool) -> None:
+    """Write what :func:`load_reduce_data` reads."""
+    np.savez(path, points=np.ascontiguousarray(points, np.float64),
+             triangles=np.ascontiguousarray(triangles, np.int64),
+             colors=np.zeros((0, 3), np.uint8) if colors is None else np.asarray(colors),
+             from_points=np.bool_(from_points))
+
+
+def reduce_child_main(argv: list[str]) -> int:
+    """``NAME LOADER DATA.npz WARMUP.npz|- OUT_DIR REPEAT TARGETS``: run one reducer.
+
+    For every target (comma-separated vertex counts) in turn: ``repeat``
+    timed runs, the first result saved as ``out_I.npz``, and ``result.json``
+    rewritten (a run that raises is recorded and the next target tried).
+    """
+    name, loader, data_path, warmup_path, out_dir, repeat, targets = argv
+    repeat = int(repeat)
+    targets = [int(t) for t in targets.split(",")]
+    result_path = os.path.join(out_dir, "result.json")
+    res = {"name": name, "status": "running", "runs": []}
+    try:
+        run = _import_loader(loader)()
+    except ImportError as exc:
+        res.update(status="missing", error=_short(exc))
+        _write_json(result_path, res)
+        return 0
+    except Exception as exc:
+        res.update(status="failed", error="loading: " + _short(exc),
+                   traceback=traceback.format_exc()[-3000:])
+        _write_json(result_path, res)
+        return 0
+    data = load_reduce_data(data_path)
+    if warmup_path != "-":
+        warm = load_reduce_data(warmup_path)
+        t0 = time.perf_counter()
+        try:
+            run(warm, max(4, int(0.3 * len(warm["points"]))))
+        except Exception as exc:  # the timed runs will report it
+            res["warmup_error"] = _short(exc)
+        res["warmup_time"] = time.perf_counter() - t0
+    _write_json(result_path, res)
+    for i, target in enumerate(targets):
+        r = {"target": target, "times": [], "calls": [], "status": "running"}
+        res["runs"].append(r)
+        res["timed_start_epoch"] = time.time()
+        _write_json(result_path, res)
+        try:
+            for j in range(repeat):
+                t0 = time.perf_counter()
+                out = run(data, target)
+                call = time.perf_counter() - t0
+                r["calls"].append(call)
+                r["times"].append(float(out.get("time", call)))
+                if j == 0:
+                    arrays = {"vertices": np.asarray(out["vertices"], dtype=np.float64),
+                              "triangles": np.asarray(out["triangles"],
+                                                      dtype=np.int64).reshape(-1, 3)}
+                    for key in ("colors", "original_id"):
+                        if out.get(key) is not None:
+                            arrays[key] = np.asarray(out[key])
+                    tmp = os.path.join(out_dir, f"out_{i}.tmp.npz")
+                    np.savez(tmp, **arrays)
+                    os.replace(tmp, os.path.join(out_dir, f"out_{i}.npz"))
+                    r["info"] = _plain(out.get("info", {}))
+                del out
+            r["status"] = "ok"
+        except Exception as exc:
+            r.update(status="failed", error=_short(exc),
+                     traceback=traceback.format_exc()[-3000:])
+        res.pop("timed_start_epoch", None)
+        _write_json(result_path, res)
+    res["status"] = "ok"
+    _write_json(result_path, res)
+    return 0
+
+
+_REDUCE_CHILD = ("import sys; from fancloud_vtk._bench_peers import reduce_child_main; "
+                 "sys.exit(reduce_child_main(sys.argv[1:]))")
+
+
+def run_reduce_method(method, data_path: str, warmup_path: str | None, work_dir: str,
+                      targets: list[int], *, timeout: float, repeat: int = 1) -> list[dict]:
+    """Run one reducer on every target in a fresh process, with one timeout for all.
+
+    One dict per target: ``status`` (``ok``, ``missing``, ``failed``,
+    ``crashed``, ``timeout``), ``message``, ``time`` (best of the timed runs),
+    ``times`` and, when it finished, the result's arrays (``vertices``,
+    ``triangles``, and ``colors`` / ``original_id`` when the method gave them).
+    Targets not reached (a timeout or crash before them) say so.
+    """
+    from fancloud_vtk.bench import _child_env
+
+    out_dir = tempfile.mkdtemp(prefix=f"{method.name.replace(':', '_')}-", dir=work_dir)
+    err_path = os.path.join(out_dir, "stderr.txt")
+    cmd = [sys.executable, "-X", "faulthandler", "-c", _REDUCE_CHILD, method.name,
+           method.loader, data_path, warmup_path or "-", out_dir, str(repeat),
+           ",".join(str(t) for t in targets)]
+    t0 = time.perf_counter()
+    with open(os.path.join(out_dir, "stdout.txt"), "w") as out, open(err_path, "w") as err:
+        try:
+            code = subprocess.run(cmd, env=_child_env(), stdout=out, stderr=err,
+                                  timeout=timeout, check=False).returncode
+        except subprocess.TimeoutExpired:
+            code = None
+    wall, killed_epoch = time.perf_counter() - t0, time.time()
+    child = {}
+    result_path = os.path.join(out_dir, "result.json")
+    if os.path.isfile(result_path):
+        with open(result_path) as f:
+            child = json.load(f)
+    runs = child.get("runs", [])
+    results = []
+    for i, target in enumerate(targets):
+        run = runs[i] if i < len(runs) else {}
+        times = run.get("times", [])
+        res = {"method": method.name, "label": method.label, "call": method.call,
+               "target": target, "times": times, "time": min(times) if times else None,
+               "calls": run.get("calls", []), "info": run.get("info", {}),
+               "warmup_time": child.get("warmup_time"), "process_wall_time": wall,
+               "exit_code": code}
+        npz = os.path.isfile(os.path.join(out_dir, f"out_{i}.npz"))
+        if run.get("status") == "ok":
+            status, message = "ok", "ok"
+        elif run.get("status") == "failed":
+            status, message = "failed", f"failed: {run['error']}"
+            res["traceback"] = run.get("traceback")
+        elif run and times and npz:  # killed after some of the repeats
+            status, message = "ok", f"ok ({len(times)} of {repeat} runs before the process ended)"
+        elif run or not runs:  # the target running when the process ended, or none ran
+            status, message = _child_status(method, code, child, err_path, timeout, [],
+                                            repeat, REDUCE_REQUIRES)
+            if status == "ok":
+                status, message = "failed", f"failed (exit {code}): the target did not finish"
+            if run and status == "timeout" and child.get("timed_start_epoch"):
+                res["time_lower_bound"] = killed_epoch - child["timed_start_epoch"]
+        else:  # an earlier target took the process down
+            status = "timeout" if code is None else "crashed" if code < 0 else "failed"
+            what = {"timeout": f"timed out ({timeout:g} s for all targets)",
+                    "crashed": "crashed"}.get(status, f"exited ({code})")
+            message = f"not run: the process {what} on an earlier target"
+        res.update(status=status, message=message)
+        path = os.path.join(out_dir, f"out_{i}.npz")
+        if status == "ok" and os.path.isfile(path):
+            with np.load(path) as z:
+                for key in z.files:
+                    res[key] = z[key]
+        elif status == "ok":
+            res.update(status="failed", message="failed: the method wrote no result")
+        results.append(res)
+    return results
 
 
 if __name__ == "__main__":  # pragma: no cover

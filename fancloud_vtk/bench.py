@@ -20,11 +20,18 @@
     crashing or hanging method is a row saying so. Writes ``mesh.md`` (also
     printed), ``mesh.json`` and ``mesh.png`` (one bar panel per metric).
 
+``fancloud bench reduce [--data bunny bone 1M ...] [--keep 0.42 0.176] [--quick]``
+    Reduction at equal vertex counts: ``reduce`` against fast-simplification,
+    pymeshlab's quadric edge collapse and Poisson-disk points, and VTK's
+    ``vtkQuadricDecimation``; time, Hausdorff, feature and colour error
+    (:mod:`fancloud_vtk.bench_reduce`). Writes ``reduce.md`` (also printed),
+    ``reduce.json``, ``reduce_curves.png`` and ``reduce_bunny.png``.
+
 Everything in the tables is measured in the run; only the targets (the
 issue's figures) are constants. Measurements that need a fresh process
 (first call, memory, thread counts, the peers) run in subprocesses of the
-same Python (see :func:`_child_main`). Further benchmarks (``reduce``) are
-meant to be added as subcommands in :func:`make_parser`.
+same Python (see :func:`_child_main`). Further benchmarks are added as
+subcommands in :func:`make_parser`.
 """
 
 from __future__ import annotations
@@ -1206,6 +1213,10 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="bench_out", help="output folder (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=_cmd_mesh)
+
+    from fancloud_vtk.bench_reduce import add_parser as add_reduce_parser
+
+    add_reduce_parser(sub)
     return parser
 
 

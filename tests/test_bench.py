@@ -266,3 +266,119 @@ def test_bench_mesh_reports_broken_methods(tmp_path, fake_peers, loader, status,
         assert row["time (s)"].startswith("> ")
     else:
         assert row["time (s)"] == "-"
+
+
+# -- bench reduce -------------------------------------------------------------------------
+
+#: Reducers of the ``--methods module:function`` protocol of ``bench reduce``.
+_FAKE_REDUCERS = '''
+import time
+
+
+def load_fail_second():
+    def run(data, target):
+        if target > 100:
+            raise RuntimeError("too many points for this method")
+        return {"vertices": data["points"][:target], "triangles": data["triangles"][:0],
+                "info": {"points_only": True}}
+    return run
+
+
+def load_hang_second():
+    def run(data, target):
+        if target > 100:
+            time.sleep(3600)
+        return {"vertices": data["points"][:target], "triangles": data["triangles"][:0],
+                "info": {"points_only": True}}
+    return run
+'''
+
+
+def test_parse_reduce_data():
+    from fancloud_vtk.bench_reduce import parse_reduce_data
+
+    assert parse_reduce_data(["bunny", "bone,5k"]) == [
+        ("bunny", None), ("bone", None), ("bumpy", 5000)]
+    with pytest.raises(ValueError):
+        parse_reduce_data(["torus"])
+
+
+def test_bench_reduce_smoke(tmp_path, capsys, fake_peers):
+    from fancloud_vtk.bench_reduce import TABLE_COLUMNS
+
+    out = tmp_path / "bench"
+    argv = ["bench", "reduce", "--data", "3000", "--keep", "0.3", "--curve", "--methods",
+            "ours-shape", "fast-simplification", "ours-colour", f"{fake_peers}:load_missing",
+            "--timeout", "120", "--samples", "1", "--out", str(out), "-q"]
+    assert cli_main(argv) == 0
+
+    text = (out / "reduce.md").read_text()
+    assert text in capsys.readouterr().out
+    assert (out / "reduce_curves.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not (out / "reduce_bunny.png").exists()  # no bunny in --data
+    tables = _tables(text)
+    header, figures = tables[0]
+    assert tuple(header) == COLUMNS
+    by_name = {row["figure"]: row for row in figures}
+    speed = by_name["speed: time ours reduce / fast-simplification"]
+    assert _is_number(speed["measured"]) and float(speed["measured"]) > 0, speed
+    assert speed["target"] == speed["verdict"] == ""  # judged at 1M and keep 0.176 only
+    quality = by_name["quality: mean Hausdorff ours (1,1,50,0) / quadric edge collapse"]
+    assert quality["verdict"].startswith("not measured: not run"), quality
+
+    header, rows = tables[1]
+    assert tuple(header) == TABLE_COLUMNS
+    by_method = {row["method"]: row for row in rows}
+    assert len(rows) == 4
+    ours = by_method["ours entropy (1,1,50,0)"]
+    assert ours["status"] == "ok", ours
+    assert ours["target"] == ours["kept vertices"] == "900"  # exact count
+    assert float(ours["time (s)"]) > 0 and "(build_fans)" in ours["+ fans (s)"]
+    assert 0 < float(ours["Hausdorff mean"]) <= float(ours["Hausdorff max"]) < 0.1
+    assert 0 < float(ours["feature mean"]) <= float(ours["feature max"])
+    fs = by_method["fast-simplification"]
+    assert fs["status"] == "ok", fs
+    assert abs(int(fs["kept vertices"].split()[0].replace(",", "")) - 900) <= 9
+    assert 0 < float(fs["Hausdorff mean"]) < 0.1
+    assert by_method["ours entropy (1,1,50,1) + colour"]["status"] == (
+        "skipped: the input has no colour (or one uniform colour)")
+    missing = by_method[f"{fake_peers}:load_missing"]
+    assert missing["status"].startswith(f"missing: {fake_peers}:load_missing not available")
+    assert missing["time (s)"] == "-"
+
+    raw = json.loads((out / "reduce.json").read_text())
+    assert raw["args"]["data"] == ["bumpy:3000"] and raw["args"]["keep"] == [0.3]
+    ds = raw["datasets"][0]
+    assert ds["fractions"] == [0.3]  # --curve alone: no extra fractions
+    results = {r["method"]: r for r in ds["results"]}
+    assert results["ours-shape"]["measures"]["vertices_are_input_points"] is True
+    assert results["ours-shape"]["info"]["prepare"] == "build_fans"
+    assert results["fast-simplification"]["measures"]["forward_mean"] > 0
+
+
+@pytest.mark.parametrize(("loader", "timeout", "status", "message"), [
+    ("load_fail_second", 60, "failed", "failed: RuntimeError: too many points for this method"),
+    ("load_hang_second", 3, "timeout", "timed out after 3 s (while timed)"),
+])
+def test_bench_reduce_reports_each_fraction(tmp_path, monkeypatch, loader, timeout, status,
+                                            message):
+    from fancloud_vtk._bench_peers import reduce_method_for, run_reduce_method, save_reduce_data
+
+    folder = tmp_path / "fake"
+    folder.mkdir()
+    (folder / "fake_bench_reducers.py").write_text(_FAKE_REDUCERS)
+    monkeypatch.setenv("PYTHONPATH", str(folder))
+    data = tmp_path / "data.npz"
+    save_reduce_data(str(data), surface_points(500, seed=0), np.zeros((1, 3), np.int64), None,
+                     True)
+    results = run_reduce_method(reduce_method_for(f"fake_bench_reducers:{loader}"), str(data),
+                                None, str(tmp_path), [50, 200, 300], timeout=timeout)
+    assert [r["status"] for r in results[:2]] == ["ok", status]
+    assert len(results[0]["vertices"]) == 50
+    assert results[1]["message"].startswith(message), results[1]["message"]
+    if status == "failed":  # the next fraction still runs
+        assert results[2]["status"] == "failed"
+    else:  # the process was killed: the next fraction says so
+        assert results[2]["status"] == "timeout"
+        assert results[2]["message"].startswith("not run: the process timed out")
+        assert 0 < results[1]["time_lower_bound"] <= 3.5
