@@ -295,6 +295,32 @@ def _in_remove(IN, nin, over, y, x):
 
 
 @njit(cache=True)
+def _set_ring(R, rlen, IN, nin, over, x, ring, k):
+    """x's fan becomes ``ring[:k]``; the in-lists change only where the ring did."""
+    for a in range(rlen[x]):
+        z = R[x, a]
+        kept = False
+        for b in range(k):
+            if ring[b] == z:
+                kept = True
+                break
+        if not kept:
+            _in_remove(IN, nin, over, z, x)
+    for b in range(k):
+        z = ring[b]
+        new = True
+        for a in range(rlen[x]):
+            if R[x, a] == z:
+                new = False
+                break
+        if new:
+            _in_add(IN, nin, over, z, x)
+    for b in range(k):
+        R[x, b] = ring[b]
+    rlen[x] = k
+
+
+@njit(cache=True)
 def build_in_lists(R, rlen, width):
     n = R.shape[0]
     IN = np.empty((n, width), np.int32)
@@ -456,13 +482,8 @@ def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, activ
         # the new rings
         for i in range(n_aff):
             x = aff[i]
-            for a in range(rlen[x]):
-                _in_remove(IN, nin, over, R[x, a], x)
-            rlen[x] = new_len[i]
+            _set_ring(R, rlen, IN, nin, over, x, new_rings[i], new_len[i])
             ropen[x] = new_open[i]
-            for a in range(new_len[i]):
-                R[x, a] = new_rings[i, a]
-                _in_add(IN, nin, over, R[x, a], x)
         # entropies of the re-formed fans (the paper's 'recompute M for them')
         counters[5] += 1
         tag = counters[5]
@@ -756,13 +777,8 @@ def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, 
         for j in range(n_aff):
             x = changed[first + j]
             b = buf_off[i] + j
-            for a in range(rlen[x]):
-                _in_remove(IN, nin, over, R[x, a], x)
-            rlen[x] = buf_len[b]
+            _set_ring(R, rlen, IN, nin, over, x, buf[b], buf_len[b])
             ropen[x] = buf_open[b]
-            for a in range(buf_len[b]):
-                R[x, a] = buf[b, a]
-                _in_add(IN, nin, over, R[x, a], x)
     # each changed fan once
     m = 0
     for i in range(n_changed):
