@@ -60,8 +60,7 @@ def _triangle_on(tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, u, v, x)
 
 
 @njit(cache=True)
-def _quads_at(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_edges, e, out,
-              row):
+def _quads_at(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_edges, e, out, row):
     """The doubly covered quads on edge e (see :func:`find_quads`); written from ``row`` on
     when ``out`` has rows, else only counted. Returns their number."""
     x = edge_uv[e, 0]
@@ -104,15 +103,27 @@ def find_quads(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_
     per = np.zeros(n_edges + 1, np.int64)
     none = np.empty((0, 4), np.int64)
     for e in prange(n_edges):
-        per[e + 1] = _quads_at(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off,
-                               v_edges, e, none, 0)
+        per[e + 1] = _quads_at(
+            points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_edges, e, none, 0
+        )
     for e in range(n_edges):
         per[e + 1] += per[e]
     out = np.empty((per[n_edges], 4), np.int64)
     for e in prange(n_edges):
         if per[e + 1] > per[e]:
-            _quads_at(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_edges, e,
-                      out, per[e])
+            _quads_at(
+                points,
+                normals,
+                tri,
+                edge_uv,
+                edge_off,
+                edge_tri,
+                v_edge_off,
+                v_edges,
+                e,
+                out,
+                per[e],
+            )
     return out
 
 
@@ -217,6 +228,7 @@ def resolve_quads(quads, count, quality, alive, partial):
 
 # -- growing a 2-manifold ---------------------------------------------------
 
+
 @njit(cache=True)
 def _tangent(nx, ny, nz):
     """A unit tangent pair (u, v) of the unit normal n, with (u, v, n) right-handed."""
@@ -231,12 +243,12 @@ def _tangent(nx, ny, nz):
     return ux, uy, uz, ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def tangent_frames(normals):
     """Per point a unit tangent pair (u, v) with (u, v, n) right-handed: (n, 6)."""
     n = normals.shape[0]
     out = np.empty((n, 6))
-    for i in range(n):
+    for i in prange(n):
         ux, uy, uz, vx, vy, vz = _tangent(normals[i, 0], normals[i, 1], normals[i, 2])
         out[i, 0] = ux
         out[i, 1] = uy
@@ -253,8 +265,16 @@ def _angle_at(points, frames, v, w):
     dx = points[w, 0] - points[v, 0]
     dy = points[w, 1] - points[v, 1]
     dz = points[w, 2] - points[v, 2]
-    return _atan2_2pi(dx * frames[v, 3] + dy * frames[v, 4] + dz * frames[v, 5],
-                      dx * frames[v, 0] + dy * frames[v, 1] + dz * frames[v, 2])
+    return _atan2_2pi(
+        dx * frames[v, 3] + dy * frames[v, 4] + dz * frames[v, 5],
+        dx * frames[v, 0] + dy * frames[v, 1] + dz * frames[v, 2],
+    )
+
+
+@njit(cache=True)
+def _wrap(d):
+    """A difference of two angles in [0, 2 pi), taken into [0, 2 pi) (as ``d % (2 pi)``)."""
+    return d + 2.0 * np.pi if d < 0.0 else d
 
 
 @njit(cache=True)
@@ -300,22 +320,38 @@ def _in_gap(points, frames, v, a, b, v_edge_off, v_edges, edge_uv, edge_used, ed
         dout = two_pi
         end = -1
         for q in range(n_out):
-            d = two_pi if w_out[q] == w_in[k] else (a_out[q] - base) % two_pi
+            d = two_pi if w_out[q] == w_in[k] else _wrap(a_out[q] - base)
             if d <= dout:
                 dout = d
                 end = w_out[q]
         if a == w_in[k] and b == end:
             return True  # it closes the gap
-        da = 0.0 if a == w_in[k] else (ang_a - base) % two_pi
-        db = dout if b == end else (ang_b - base) % two_pi
+        da = 0.0 if a == w_in[k] else _wrap(ang_a - base)
+        db = dout if b == end else _wrap(ang_b - base)
         if da < db <= dout:
             return True
     return False
 
 
 @njit(cache=True)
-def _try_add(t, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, pinch, flip, points,
-             frames, v_edge_off, v_edges, wi, wa):
+def _try_add(
+    t,
+    tri,
+    tri_edge,
+    edge_uv,
+    edge_used,
+    edge_fwd,
+    v_count,
+    v_bnd,
+    pinch,
+    flip,
+    points,
+    frames,
+    v_edge_off,
+    v_edges,
+    wi,
+    wa,
+):
     """Whether triangle t can join the mesh, and with which orientation.
 
     ``tri[t]`` is its preferred orientation; ``edge_fwd[e]`` is 1 when the
@@ -361,9 +397,20 @@ def _try_add(t, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, pin
         # the corner at v must lie in the gap of v's triangles (no overlap)
         if v_bnd[v] == 2 and edge_used[e_in] == 1 and edge_used[e_out] == 1:
             continue  # it fills v's one gap, between its two boundary edges
-        if v_bnd[v] > 0 and not _in_gap(points, frames, v, tri[t, (j + 1) % 3],
-                                        tri[t, (j + 2) % 3], v_edge_off, v_edges, edge_uv,
-                                        edge_used, edge_fwd, wi, wa):
+        if v_bnd[v] > 0 and not _in_gap(
+            points,
+            frames,
+            v,
+            tri[t, (j + 1) % 3],
+            tri[t, (j + 2) % 3],
+            v_edge_off,
+            v_edges,
+            edge_uv,
+            edge_used,
+            edge_fwd,
+            wi,
+            wa,
+        ):
             return 0
     if want == 0:
         want = 1
@@ -394,8 +441,23 @@ def _accept(t, how, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd,
 
 
 @njit(cache=True)
-def grow_manifold(tri, alive, pre, priority, level, tri_edge, edge_uv, edge_off, edge_tri, n,
-                  pinch, points, normals, v_edge_off, v_edges):
+def grow_manifold(
+    tri,
+    alive,
+    pre,
+    priority,
+    level,
+    tri_edge,
+    edge_uv,
+    edge_off,
+    edge_tri,
+    n,
+    pinch,
+    points,
+    normals,
+    v_edge_off,
+    v_edges,
+):
     """Grow a consistently oriented 2-manifold from the candidate triangles.
 
     The triangles of ``pre`` (uncontested, see ``fan_cloud_to_mesh``) are
@@ -450,18 +512,38 @@ def grow_manifold(tri, alive, pre, priority, level, tri_edge, edge_uv, edge_off,
                     tail[lc] += 1
                     size += 1
                     queued[c] = True
-    seeds = np.argsort(priority, kind="mergesort")
+    # the seeds, in priority order, are sorted when first needed, and only
+    # those that can still seed (all vertices new: that never comes back)
+    seeds = np.empty(0, np.int64)
+    sorted_seeds = False
     s_next = 0
     while True:
         if size == 0:
+            if not sorted_seeds:
+                sorted_seeds = True
+                fresh = np.zeros(m, np.bool_)
+                for t in range(m):
+                    fresh[t] = (
+                        not dead[t]
+                        and not accepted[t]
+                        and v_count[tri[t, 0]] == 0
+                        and v_count[tri[t, 1]] == 0
+                        and v_count[tri[t, 2]] == 0
+                    )
+                seeds = np.flatnonzero(fresh)
+                seeds = seeds[np.argsort(priority[seeds], kind="mergesort")]
             # a new seed: the best live candidate whose vertices are all new
-            while s_next < m:
+            while s_next < seeds.shape[0]:
                 t = seeds[s_next]
                 s_next += 1
                 if dead[t] or accepted[t]:
                     continue
-                if v_count[tri[t, 0]] == 0 and v_count[tri[t, 1]] == 0 \
-                        and v_count[tri[t, 2]] == 0 and not queued[t]:
+                if (
+                    v_count[tri[t, 0]] == 0
+                    and v_count[tri[t, 1]] == 0
+                    and v_count[tri[t, 2]] == 0
+                    and not queued[t]
+                ):
                     lv = level[t]
                     queue[lv, tail[lv] % cap] = t
                     tail[lv] += 1
@@ -479,8 +561,24 @@ def grow_manifold(tri, alive, pre, priority, level, tri_edge, edge_uv, edge_off,
         queued[t] = False
         if dead[t] or accepted[t]:
             continue
-        how = _try_add(t, tri, tri_edge, edge_uv, edge_used, edge_fwd, v_count, v_bnd, pinch,
-                       False, points, frames, v_edge_off, v_edges, wi, wa)
+        how = _try_add(
+            t,
+            tri,
+            tri_edge,
+            edge_uv,
+            edge_used,
+            edge_fwd,
+            v_count,
+            v_bnd,
+            pinch,
+            False,
+            points,
+            frames,
+            v_edge_off,
+            v_edges,
+            wi,
+            wa,
+        )
         if how == 0:
             # refused for good when an edge is full; else it may fit later
             for j in range(3):
@@ -505,6 +603,7 @@ def grow_manifold(tri, alive, pre, priority, level, tri_edge, edge_uv, edge_off,
 
 # -- Delaunay rings ----------------------------------------------------------
 
+
 @njit(cache=True)
 def _hull_ring(xs, ys, m, idx, order, hull, origin_inside):
     """Vertices of the convex hull of (xs, ys)[:m], counter-clockwise, into hull.
@@ -518,8 +617,13 @@ def _hull_ring(xs, ys, m, idx, order, hull, origin_inside):
     for i in range(1, m):  # insertion sort by (x, y, index)
         v = order[i]
         j = i - 1
-        while j >= 0 and (xs[order[j]] > xs[v] or (xs[order[j]] == xs[v] and (
-                ys[order[j]] > ys[v] or (ys[order[j]] == ys[v] and idx[order[j]] > idx[v])))):
+        while j >= 0 and (
+            xs[order[j]] > xs[v]
+            or (
+                xs[order[j]] == xs[v]
+                and (ys[order[j]] > ys[v] or (ys[order[j]] == ys[v] and idx[order[j]] > idx[v]))
+            )
+        ):
             order[j + 1] = order[j]
             j -= 1
         order[j + 1] = v
@@ -559,8 +663,9 @@ def _hull_ring(xs, ys, m, idx, order, hull, origin_inside):
 
 
 @njit(cache=True)
-def _delaunay_ring(points, normals, offsets, ring, is_open, p, max_ring, cand, xs, ys, order,
-                   hull, stamp, table):
+def _delaunay_ring(
+    points, normals, offsets, ring, is_open, p, max_ring, cand, xs, ys, order, hull, stamp, table
+):
     """Write p's local Delaunay ring to table[p]; return its size, or -1 (keep the fan's ring).
 
     ``stamp`` (n,) marks the candidates already taken for p (value p).
@@ -670,14 +775,43 @@ def delaunay_rings(points, normals, offsets, ring, is_open, max_ring, n_chunks):
         hull = np.empty(cap + 1, np.int64)
         stamp = np.full(n, -1, np.int64)
         for p in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
-            h = _delaunay_ring(points, normals, offsets, ring, is_open[p], p, max_ring, cand, xs,
-                               ys, order, hull, stamp, table)
+            h = _delaunay_ring(
+                points,
+                normals,
+                offsets,
+                ring,
+                is_open[p],
+                p,
+                max_ring,
+                cand,
+                xs,
+                ys,
+                order,
+                hull,
+                stamp,
+                table,
+            )
             if h < 0:  # keep the fan's own ring
                 h = offsets[p + 1] - offsets[p]
                 for a in range(h):
                     table[p, a] = ring[offsets[p] + a]
             counts[p] = h
     return counts, table
+
+
+@njit(cache=True)
+def compact_rings(counts, table):
+    """The rings ``table[p, :counts[p]]`` as CSR: (offsets, ring)."""
+    n = counts.shape[0]
+    offsets = np.zeros(n + 1, np.int64)
+    for p in range(n):
+        offsets[p + 1] = offsets[p] + counts[p]
+    ring = np.empty(offsets[n], np.int64)
+    for p in range(n):
+        o = offsets[p]
+        for a in range(counts[p]):
+            ring[o + a] = table[p, a]
+    return offsets, ring
 
 
 @njit(cache=True)
@@ -731,6 +865,23 @@ def _pinched_at(triangles, keep, vt_off, vt, v, parent, size):
     return n_fans
 
 
+@njit(cache=True, parallel=True)
+def _pinched_vertices(triangles, keep, vt_off, vt, n):
+    """Whether each vertex has two or more fans of kept triangles (in parallel)."""
+    out = np.zeros(n, np.bool_)
+    n_chunks = min(max(n, 1), 64)
+    for ch in prange(n_chunks):
+        width = 1
+        for v in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
+            width = max(width, vt_off[v + 1] - vt_off[v])
+        parent = np.empty(width, np.int64)
+        size = np.empty(width, np.int64)
+        for v in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
+            if vt_off[v + 1] - vt_off[v] >= 2:
+                out[v] = _pinched_at(triangles, keep, vt_off, vt, v, parent, size) >= 2
+    return out
+
+
 @njit(cache=True)
 def split_pinched(triangles, keep, n):
     """Cut non-manifold vertices: keep only the largest fan of triangles around each.
@@ -742,6 +893,11 @@ def split_pinched(triangles, keep, n):
     hole closing. Dropping a triangle can split another vertex's fan, so
     the vertices of dropped triangles are looked at again, until none is
     pinched. Returns the number dropped.
+
+    Vertices are looked at in increasing order; the first pass visits only
+    those found pinched beforehand (in parallel) or touched by a drop: the
+    fans of any other vertex are as they were, so the result is that of
+    visiting every vertex.
     """
     vt_off, vt = csr_of(triangles, n)
     width = 1
@@ -749,12 +905,16 @@ def split_pinched(triangles, keep, n):
         width = max(width, vt_off[v + 1] - vt_off[v])
     parent = np.empty(width, np.int64)
     size = np.empty(width, np.int64)
-    todo = np.arange(n)
+    pinched = _pinched_vertices(triangles, keep, vt_off, vt, n)
     mark = np.zeros(n, np.bool_)
     dropped = 0
+    todo = np.arange(n)
+    first = True
     while todo.shape[0] > 0:
         nxt = []
         for v in todo:
+            if first and not pinched[v] and not mark[v]:
+                continue  # its triangles are as they were: one fan
             mark[v] = False
             if vt_off[v + 1] - vt_off[v] < 2:
                 continue
@@ -777,10 +937,12 @@ def split_pinched(triangles, keep, n):
                             mark[w] = True
                             nxt.append(w)
         todo = np.array(nxt, np.int64)
+        first = False
     return dropped
 
 
 # -- holes -------------------------------------------------------------------
+
 
 @njit(cache=True)
 def _min_angle_cos(points, a, b, c):
@@ -807,8 +969,25 @@ def _min_angle_cos(points, a, b, c):
 
 
 @njit(cache=True)
-def clip_ears(points, normals, loop_off, loop_verts, triangles, vt_off, vt, cand_keys,
-              cand_counts, n, out, ok):
+def clip_ears(
+    points,
+    normals,
+    loop_off,
+    loop_verts,
+    triangles,
+    vt_off,
+    vt,
+    cand_tri,
+    cand_count,
+    edge_uv,
+    edge_off,
+    edge_tri,
+    v_edge_off,
+    v_edges,
+    n,
+    out,
+    ok,
+):
     """Triangulate boundary loops by clipping the best ear first.
 
     Loop ``i`` is ``loop_verts[loop_off[i]:loop_off[i + 1]]`` along the
@@ -818,8 +997,10 @@ def clip_ears(points, normals, loop_off, loop_verts, triangles, vt_off, vt, cand
     tangent plane, holds no other loop point there, and its new edge a-c is
     neither in the mesh (``triangles``, with the triangles at each vertex in
     ``vt_off``/``vt``) nor made earlier for this loop; the best ear is a fan
-    triangle (the most fans, from ``cand_keys``/``cand_counts``), then the
-    one with the largest smallest angle. ``ok[i]`` is False for a loop that cannot be closed so.
+    triangle (the most fans: ``cand_count`` of the candidate triangle found
+    through its edge a-c in the candidates' edges, see :func:`build_edges`
+    and :func:`vertex_edges`), then the one with the largest smallest angle.
+    ``ok[i]`` is False for a loop that cannot be closed so.
     """
     n_loops = loop_off.shape[0] - 1
     for i in range(n_loops):
@@ -851,14 +1032,26 @@ def clip_ears(points, normals, loop_off, loop_verts, triangles, vt_off, vt, cand
                 if dup:
                     continue
                 ux, uy, uz, vx, vy, vz = _tangent(normals[b, 0], normals[b, 1], normals[b, 2])
-                ax = (points[a, 0] - points[b, 0]) * ux + (points[a, 1] - points[b, 1]) * uy \
+                ax = (
+                    (points[a, 0] - points[b, 0]) * ux
+                    + (points[a, 1] - points[b, 1]) * uy
                     + (points[a, 2] - points[b, 2]) * uz
-                ay = (points[a, 0] - points[b, 0]) * vx + (points[a, 1] - points[b, 1]) * vy \
+                )
+                ay = (
+                    (points[a, 0] - points[b, 0]) * vx
+                    + (points[a, 1] - points[b, 1]) * vy
                     + (points[a, 2] - points[b, 2]) * vz
-                cx = (points[c, 0] - points[b, 0]) * ux + (points[c, 1] - points[b, 1]) * uy \
+                )
+                cx = (
+                    (points[c, 0] - points[b, 0]) * ux
+                    + (points[c, 1] - points[b, 1]) * uy
                     + (points[c, 2] - points[b, 2]) * uz
-                cy = (points[c, 0] - points[b, 0]) * vx + (points[c, 1] - points[b, 1]) * vy \
+                )
+                cy = (
+                    (points[c, 0] - points[b, 0]) * vx
+                    + (points[c, 1] - points[b, 1]) * vy
                     + (points[c, 2] - points[b, 2]) * vz
+                )
                 # convex at b: (b - a) x (c - b) > 0, with b at the origin
                 if (-ax) * cy - (-ay) * cx <= 0.0:
                     continue
@@ -873,24 +1066,19 @@ def clip_ears(points, normals, loop_off, loop_verts, triangles, vt_off, vt, cand
                     qx = dx * ux + dy * uy + dz * uz
                     qy = dx * vx + dy * vy + dz * vz
                     # inside or on the counter-clockwise triangle a, b(0), c
-                    if (0.0 - ax) * (qy - ay) - (0.0 - ay) * (qx - ax) >= 0.0 and \
-                            (cx - 0.0) * (qy - 0.0) - (cy - 0.0) * (qx - 0.0) >= 0.0 and \
-                            (ax - cx) * (qy - cy) - (ay - cy) * (qx - cx) >= 0.0:
+                    if (
+                        (0.0 - ax) * (qy - ay) - (0.0 - ay) * (qx - ax) >= 0.0
+                        and (cx - 0.0) * (qy - 0.0) - (cy - 0.0) * (qx - 0.0) >= 0.0
+                        and (ax - cx) * (qy - cy) - (ay - cy) * (qx - cx) >= 0.0
+                    ):
                         inside = True
                         break
                 if inside:
                     continue
-                x0, x1, x2 = a, b, c
-                if x0 > x1:
-                    x0, x1 = x1, x0
-                if x1 > x2:
-                    x1, x2 = x2, x1
-                if x0 > x1:
-                    x0, x1 = x1, x0
-                k_t = np.searchsorted(cand_keys, (x0 * n + x1) * n + x2)
-                cnt = 0
-                if k_t < cand_keys.shape[0] and cand_keys[k_t] == (x0 * n + x1) * n + x2:
-                    cnt = cand_counts[k_t]
+                t_c = _triangle_on(
+                    cand_tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, a, c, b
+                )
+                cnt = cand_count[t_c] if t_c >= 0 else 0
                 cs = _min_angle_cos(points, a, b, c)
                 if cnt > best_cnt or (cnt == best_cnt and cs < best_cos):
                     best = j
@@ -935,6 +1123,7 @@ def clip_ears(points, normals, loop_off, loop_verts, triangles, vt_off, vt, cand
 
 
 # -- distinct triangles -----------------------------------------------------
+
 
 @njit(cache=True)
 def _fan_has(offsets, ring, is_open, c, x, y):
@@ -1225,3 +1414,217 @@ def uncontested(tri, alive, count, tri_edge, n_edges, min_count):
                     ok = False
             out[t] = ok
     return out
+
+
+# -- unused points -------------------------------------------------------------
+
+
+@njit(cache=True)
+def insert_unused(points, normals, offsets, ring, triangles, n):
+    """Put each unused point into the triangle it lies over (1 -> 3 split).
+
+    For unused point p (in increasing order), the candidates are the
+    triangles at p's fan neighbours and theirs; the one containing p's
+    projection along p's normal best (largest smallest barycentric
+    coordinate, ties: the lowest triangle number) is split, if p lies
+    strictly inside it. The new triangles are no candidates for the other
+    points of this call (call again for those). Returns (triangles,
+    points inserted): the triangles not split, then the new ones.
+    """
+    m = triangles.shape[0]
+    used = np.zeros(n, np.bool_)
+    for t in range(m):
+        for j in range(3):
+            used[triangles[t, j]] = True
+    n_todo = 0
+    for p in range(n):
+        if not used[p]:
+            n_todo += 1
+    if n_todo == 0 or m == 0:
+        return triangles, 0
+    vt_off, vt = csr_of(triangles, n)
+    alive = np.ones(m, np.bool_)
+    v_stamp = np.full(n, -1, np.int64)
+    t_stamp = np.full(m, -1, np.int64)
+    extra = np.empty((3 * n_todo, 3), np.int64)
+    n_extra = 0
+    near = np.empty(64, np.int64)
+    for p in range(n):
+        if used[p]:
+            continue
+        # p's fan neighbours and theirs
+        k = 0
+        for a in range(offsets[p], offsets[p + 1]):
+            q = ring[a]
+            for b in range(offsets[q] - 1, offsets[q + 1]):
+                s = q if b < offsets[q] else ring[b]
+                if v_stamp[s] == p:
+                    continue
+                v_stamp[s] = p
+                if k == near.shape[0]:
+                    bigger = np.empty(2 * k, np.int64)
+                    bigger[:k] = near
+                    near = bigger
+                near[k] = s
+                k += 1
+        nx = normals[p, 0]
+        ny = normals[p, 1]
+        nz = normals[p, 2]
+        xx = points[p, 0]
+        xy = points[p, 1]
+        xz = points[p, 2]
+        best = -np.inf
+        best_t = -1
+        for i in range(k):
+            v = near[i]
+            for c in range(vt_off[v], vt_off[v + 1]):
+                t = vt[c]
+                if t_stamp[t] == p or not alive[t]:
+                    continue
+                t_stamp[t] = p
+                a = triangles[t, 0]
+                b = triangles[t, 1]
+                cc = triangles[t, 2]
+                # signed areas of (a, b, x), (b, c, x), (c, a, x) and (a, b, c) along n
+                w = np.inf
+                for e in range(3):
+                    u = a if e == 0 else (b if e == 1 else cc)
+                    z = b if e == 0 else (cc if e == 1 else a)
+                    ex = points[z, 0] - points[u, 0]
+                    ey = points[z, 1] - points[u, 1]
+                    ez = points[z, 2] - points[u, 2]
+                    dx = xx - points[u, 0]
+                    dy = xy - points[u, 1]
+                    dz = xz - points[u, 2]
+                    w = min(
+                        w,
+                        (ey * dz - ez * dy) * nx
+                        + (ez * dx - ex * dz) * ny
+                        + (ex * dy - ey * dx) * nz,
+                    )
+                ex = points[b, 0] - points[a, 0]
+                ey = points[b, 1] - points[a, 1]
+                ez = points[b, 2] - points[a, 2]
+                dx = points[cc, 0] - points[a, 0]
+                dy = points[cc, 1] - points[a, 1]
+                dz = points[cc, 2] - points[a, 2]
+                area = (
+                    (ey * dz - ez * dy) * nx + (ez * dx - ex * dz) * ny + (ex * dy - ey * dx) * nz
+                )
+                if area <= 0.0:
+                    continue
+                score = w / area
+                if score > best or (score == best and t < best_t):
+                    best = score
+                    best_t = t
+        if best_t < 0 or best <= 0.0:
+            continue  # p lies over no triangle: splitting one would fold
+        alive[best_t] = False
+        a = triangles[best_t, 0]
+        b = triangles[best_t, 1]
+        cc = triangles[best_t, 2]
+        extra[n_extra, 0] = a
+        extra[n_extra, 1] = b
+        extra[n_extra, 2] = p
+        extra[n_extra + 1, 0] = b
+        extra[n_extra + 1, 1] = cc
+        extra[n_extra + 1, 2] = p
+        extra[n_extra + 2, 0] = cc
+        extra[n_extra + 2, 1] = a
+        extra[n_extra + 2, 2] = p
+        n_extra += 3
+    if n_extra == 0:
+        return triangles, 0
+    n_alive = 0
+    for t in range(m):
+        if alive[t]:
+            n_alive += 1
+    out = np.empty((n_alive + n_extra, 3), np.int64)
+    r = 0
+    for t in range(m):
+        if alive[t]:
+            out[r, 0] = triangles[t, 0]
+            out[r, 1] = triangles[t, 1]
+            out[r, 2] = triangles[t, 2]
+            r += 1
+    out[n_alive:] = extra[:n_extra]
+    return out, n_extra // 3
+
+
+@njit(cache=True)
+def star_fits(points, normals, loop, p, triangles, vt_off, vt):
+    """Whether the triangles (p, b, a) over a loop's half-edges a -> b make a star around p.
+
+    Seen along p's normal, the loop, run backwards, must turn once
+    counter-clockwise around p in steps under pi, and no edge p-a may be
+    in the mesh already (``triangles``, with the triangles at each vertex in
+    ``vt_off``/``vt``).
+    """
+    m = loop.shape[0]
+    ux, uy, uz, vx, vy, vz = _tangent(normals[p, 0], normals[p, 1], normals[p, 2])
+    ang = np.empty(m)
+    for j in range(m):
+        dx = points[loop[j], 0] - points[p, 0]
+        dy = points[loop[j], 1] - points[p, 1]
+        dz = points[loop[j], 2] - points[p, 2]
+        ang[j] = np.arctan2(dx * vx + dy * vy + dz * vz, dx * ux + dy * uy + dz * uz)
+    two_pi = 2.0 * np.pi
+    total = 0.0
+    for j in range(m):
+        step = (ang[j] - ang[(j + 1) % m]) % two_pi
+        if step >= np.pi:
+            return False
+        total += step
+    if abs(total - two_pi) > 1e-6 + 1e-5 * two_pi:
+        return False
+    for j in range(m):
+        if has_edge(triangles, vt_off, vt, p, loop[j]):
+            return False
+    return True
+
+
+@njit(cache=True)
+def fill_fits(tris, loop, triangles, vt_off, vt):
+    """Whether triangles filling a loop make a disk that joins the mesh manifoldly.
+
+    Every loop edge a -> b must be run b -> a by a fill triangle; every
+    inner edge of the fill must have two fill triangles and must not be in
+    the mesh (``triangles``, with the triangles at each vertex in
+    ``vt_off``/``vt``).
+    """
+    m = loop.shape[0]
+    k = tris.shape[0]
+    for j in range(m):
+        a = loop[j]
+        b = loop[(j + 1) % m]
+        found = False
+        for t in range(k):
+            for i in range(3):
+                if tris[t, i] == b and tris[t, (i + 1) % 3] == a:
+                    found = True
+        if not found:
+            return False
+    for t in range(k):
+        for i in range(3):
+            x = tris[t, i]
+            y = tris[t, (i + 1) % 3]
+            rev = False  # y -> x on the loop
+            fwd = False
+            for j in range(m):
+                if loop[j] == y and loop[(j + 1) % m] == x:
+                    rev = True
+                if loop[j] == x and loop[(j + 1) % m] == y:
+                    fwd = True
+            if rev:
+                continue
+            if not fwd:
+                twin = False
+                for s in range(k):
+                    for q in range(3):
+                        if tris[s, q] == y and tris[s, (q + 1) % 3] == x:
+                            twin = True
+                if not twin:
+                    return False  # an inner edge with one triangle: not a disk
+            if has_edge(triangles, vt_off, vt, x, y):
+                return False  # an inner edge that exists elsewhere: non-manifold
+    return True

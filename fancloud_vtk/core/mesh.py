@@ -180,14 +180,19 @@ def fan_cloud_to_mesh(
     t0 = time.perf_counter()
     if rings == "delaunay":
         width = max(MAX_RING, int(fancloud.fan_sizes.max(initial=0)))
-        counts, table = MK.delaunay_rings(fancloud.points, fancloud.normals, fancloud.offsets,
-                                          fancloud.ring, fancloud.open, width,
-                                          2 * numba.get_num_threads())
-        offsets = np.zeros(n + 1, np.int64)
-        np.cumsum(counts, out=offsets[1:])
-        ring = table[np.arange(width)[None, :] < counts[:, None]]
-        fans = FanCloud(fancloud.points, offsets, ring, fancloud.normals, fancloud.open,
-                        fancloud.rotated)
+        counts, table = MK.delaunay_rings(
+            fancloud.points,
+            fancloud.normals,
+            fancloud.offsets,
+            fancloud.ring,
+            fancloud.open,
+            width,
+            2 * numba.get_num_threads(),
+        )
+        offsets, ring = MK.compact_rings(counts, table)
+        fans = FanCloud(
+            fancloud.points, offsets, ring, fancloud.normals, fancloud.open, fancloud.rotated
+        )
         timings["delaunay_rings"] = time.perf_counter() - t0
     else:
         fans = fancloud
@@ -200,8 +205,9 @@ def fan_cloud_to_mesh(
     quality = MK.min_angles(fancloud.points, tri) / 60.0
     edge_uv, tri_edge, edge_off, edge_tri = MK.build_edges(tri, n)
     v_edge_off, v_edges = MK.vertex_edges(edge_uv, n)
-    quads = MK.find_quads(fancloud.points, fancloud.normals, tri, edge_uv, edge_off, edge_tri,
-                          v_edge_off, v_edges)
+    quads = MK.find_quads(
+        fancloud.points, fancloud.normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_edges
+    )
     alive = np.ones(len(tri), bool)
     MK.resolve_quads(quads, count, quality, alive, True)
     stats["after_superfluous"] = int(alive.sum())
@@ -215,9 +221,23 @@ def fan_cloud_to_mesh(
     # edges); the growing then decides the contested rest
     pre = MK.uncontested(tri, alive, count, tri_edge, len(edge_uv), 3)
     stats["uncontested"] = int(pre.sum())
-    accepted, out_tri = MK.grow_manifold(tri, alive, pre, priority, level, tri_edge, edge_uv,
-                                         edge_off, edge_tri, n, True, fancloud.points,
-                                         fancloud.normals, v_edge_off, v_edges)
+    accepted, out_tri = MK.grow_manifold(
+        tri,
+        alive,
+        pre,
+        priority,
+        level,
+        tri_edge,
+        edge_uv,
+        edge_off,
+        edge_tri,
+        n,
+        True,
+        fancloud.points,
+        fancloud.normals,
+        v_edge_off,
+        v_edges,
+    )
     triangles = out_tri[accepted]
     keep = np.ones(len(triangles), bool)
     stats["pinch_cut"] = MK.split_pinched(triangles, keep, n)
@@ -229,7 +249,8 @@ def fan_cloud_to_mesh(
     stats["holes_closed"] = 0
     stats["points_inserted"] = 0
     if close_holes:
-        triangles, closed, inserted = _close_holes(fancloud, triangles, tri, count, max_hole)
+        cand = (tri, count, edge_uv, edge_off, edge_tri, v_edge_off, v_edges)
+        triangles, closed, inserted = _close_holes(fancloud, triangles, cand, max_hole)
         split = 1
         while split:  # two points over one triangle: the second goes in next round
             triangles, split = _insert_unused(fancloud, triangles)
@@ -242,8 +263,7 @@ def fan_cloud_to_mesh(
     t0 = time.perf_counter()
     from .mesh_stats import mesh_statistics
 
-    stats.update(mesh_statistics(fancloud.points, triangles,
-                                 self_intersections=self_intersections))
+    stats.update(mesh_statistics(fancloud.points, triangles, self_intersections=self_intersections))
     timings["checks"] = time.perf_counter() - t0
     stats["timings"] = timings
     return TriangleMesh(
@@ -266,13 +286,15 @@ def _spatial_order(fc: FanCloud):
     grid = _Grid(fc.points)
     order = grid.order
     offsets, ring = MK.relabel_rings(fc.offsets, fc.ring, order, grid.pos)
-    return order, FanCloud(grid.sorted_points, offsets, ring, fc.normals[order], fc.open[order],
-                           fc.rotated[order])
+    return order, FanCloud(
+        grid.sorted_points, offsets, ring, fc.normals[order], fc.open[order], fc.rotated[order]
+    )
 
 
 # -- stages --------------------------------------------------------------------
 
-def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds=4):
+
+def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
     """Triangulate the small boundary loops that are holes, not the real boundary.
 
     A loop with a single unused point inside gets a star around it; with
@@ -281,14 +303,12 @@ def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds
     it has every loop edge; otherwise (and for loops with no unused point:
     most of them, in one numba call) the loop is clipped ear by ear. A loop
     that cannot be closed is widened by the triangles around it and tried
-    again (``rounds`` times). Returns (triangles, holes closed, points
-    inserted).
+    again (``rounds`` times). ``cand`` holds the candidate triangles, their
+    counts and their edges (``tri, count, edge_uv, edge_off, edge_tri,
+    v_edge_off, v_edges``, see :func:`fan_cloud_to_mesh`). Returns
+    (triangles, holes closed, points inserted).
     """
     n = fc.n_points
-    ks = np.sort(cand_tri, axis=1)
-    cand_keys = (ks[:, 0] * n + ks[:, 1]) * n + ks[:, 2]
-    order = np.argsort(cand_keys, kind="stable")
-    cand_keys, cand_counts = cand_keys[order], cand_count[order]
     closed = inserted = 0
     widened = np.zeros(n, bool)  # around holes that were widened: any size goes
     for _ in range(rounds):
@@ -302,7 +322,7 @@ def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds
         any_wide = np.add.reduceat(widened[loop_verts].astype(np.int64), starts) > 0
         take = (sizes == 3) | (((sizes <= max_hole) | any_wide) & ~any_open)
         for i in np.flatnonzero(any_open & ((sizes <= max_hole) | any_wide) & (sizes > 3)):
-            take[i] = not _on_real_boundary(fc, loop_verts[starts[i]:loop_off[i + 1]])
+            take[i] = not _on_real_boundary(fc, loop_verts[starts[i] : loop_off[i + 1]])
         ids = np.flatnonzero(take)
         if len(ids) == 0:
             break
@@ -323,7 +343,7 @@ def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds
         failed = []
         plain = take.copy()  # loops for the ear clipping
         for i, pts in interior.items():
-            loop = loop_verts[starts[i]:loop_off[i + 1]]
+            loop = loop_verts[starts[i] : loop_off[i + 1]]
             tris = _star(fc, loop, pts[0], edges) if len(pts) == 1 else None
             if tris is None:
                 tris = _delaunay_fill(fc, loop, pts, edges)
@@ -340,12 +360,23 @@ def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds
             np.cumsum(p_sizes, out=p_off[1:])
             out = np.empty((int((p_sizes - 2).sum()), 3), np.int64)
             ok = np.zeros(len(p_sizes), bool)
-            MK.clip_ears(fc.points, fc.normals, p_off, loop_verts[sel], triangles, vt_off, vt,
-                         cand_keys, cand_counts, n, out, ok)
+            MK.clip_ears(
+                fc.points,
+                fc.normals,
+                p_off,
+                loop_verts[sel],
+                triangles,
+                vt_off,
+                vt,
+                *cand,
+                n,
+                out,
+                ok,
+            )
             new.append(out[np.repeat(ok, p_sizes - 2)])
             closed += int(ok.sum())
             bad = np.flatnonzero(plain)[~ok]
-            failed.extend(loop_verts[starts[i]:loop_off[i + 1]] for i in bad)
+            failed.extend(loop_verts[starts[i] : loop_off[i + 1]] for i in bad)
         new = [t for t in new if len(t)]
         if new:
             triangles = np.vstack([triangles, *new])
@@ -363,12 +394,6 @@ def _close_holes(fc: FanCloud, triangles, cand_tri, cand_count, max_hole, rounds
     return triangles, closed, inserted
 
 
-def _has_edge(edges, u, v) -> bool:
-    """Whether the mesh has the edge u-v; ``edges`` = (triangles, vt_off, vt)."""
-    triangles, vt_off, vt = edges
-    return bool(MK.has_edge(triangles, vt_off, vt, int(u), int(v)))
-
-
 def _insert_unused(fc: FanCloud, triangles):
     """Put each unused point into the triangle it lies over (1 -> 3 split).
 
@@ -376,46 +401,14 @@ def _insert_unused(fc: FanCloud, triangles):
     without them); one beside the mesh (on a real boundary) lies over no
     triangle and stays unused. The triangle is the one among those around
     the point's two fan rings that contains its projection along its normal
-    (largest smallest barycentric coordinate). Returns (triangles, points
-    inserted).
+    (largest smallest barycentric coordinate); see
+    :func:`~fancloud_vtk.core._mesh_kernels.insert_unused`. Returns
+    (triangles, points inserted).
     """
-    n = fc.n_points
-    used = np.zeros(n, bool)
-    used[triangles.ravel()] = True
-    todo = np.flatnonzero(~used)
-    if len(todo) == 0 or len(triangles) == 0:
-        return triangles, 0
-    # vertex -> triangles (CSR)
-    start, by_vertex = MK.vertex_triangles(triangles, n)
-    alive = np.ones(len(triangles), bool)
-    extra = []
-    pts = fc.points
-    for p in todo.tolist():
-        near = np.unique(np.concatenate(
-            [fc.neighbours(q) for q in fc.neighbours(p).tolist()] + [fc.neighbours(p)]))
-        cand = np.unique(np.concatenate([by_vertex[start[q]:start[q + 1]] for q in near]))
-        cand = cand[alive[cand]]
-        if len(cand) == 0:
-            continue
-        t = triangles[cand]
-        a, b, c = pts[t[:, 0]], pts[t[:, 1]], pts[t[:, 2]]
-        nrm = fc.normals[p]
-        x = pts[p]
-        # signed areas of (a, b, x), (b, c, x), (c, a, x) seen along p's normal
-        w = np.stack([np.cross(b - a, x - a) @ nrm, np.cross(c - b, x - b) @ nrm,
-                      np.cross(a - c, x - c) @ nrm], axis=1)
-        area = np.cross(b - a, c - a) @ nrm
-        score = np.where(area > 0, w.min(axis=1) / np.where(area > 0, area, 1.0), -np.inf)
-        k = int(np.argmax(score))
-        if score[k] <= 0:
-            continue  # p does not lie over a triangle: splitting one would fold
-        i = int(cand[k])
-        ta, tb, tc = (int(v) for v in triangles[i])
-        alive[i] = False
-        extra.append([(ta, tb, p), (tb, tc, p), (tc, ta, p)])
-    if not extra:
-        return triangles, 0
-    return np.vstack([triangles[alive], np.array(extra, np.int64).reshape(-1, 3)]), len(extra)
+    out, inserted = MK.insert_unused(
+        fc.points, fc.normals, fc.offsets, fc.ring, triangles, fc.n_points
+    )
+    return out, int(inserted)
 
 
 def _on_real_boundary(fc: FanCloud, loop) -> bool:
@@ -479,40 +472,23 @@ def _delaunay_fill(fc: FanCloud, loop, pts, edges):
     a, b, c = (fc.points[tris[:, j]] for j in range(3))
     flip = np.einsum("ij,j->i", np.cross(b - a, c - a), normal) < 0
     tris[flip] = tris[flip][:, [0, 2, 1]]
-    half = {(int(t[j]), int(t[(j + 1) % 3])) for t in tris for j in range(3)}
-    m = len(loop)
-    for j in range(m):  # every loop edge, run against the mesh's direction
-        if (int(loop[(j + 1) % m]), int(loop[j])) not in half:
-            return None
-    on_loop = {(int(loop[j]), int(loop[(j + 1) % m])) for j in range(m)}
-    for x, y in half:
-        if (y, x) not in on_loop and (x, y) not in on_loop and (y, x) not in half:
-            return None  # an inner edge with one triangle: not a disk
-        if (y, x) not in on_loop and _has_edge(edges, x, y):
-            return None  # an inner edge that exists elsewhere: non-manifold
+    triangles, vt_off, vt = edges
+    if not MK.fill_fits(
+        np.ascontiguousarray(tris, dtype=np.int64),
+        np.ascontiguousarray(loop, dtype=np.int64),
+        triangles,
+        vt_off,
+        vt,
+    ):
+        return None
     return [tuple(int(x) for x in t) for t in tris]
 
 
 def _star(fc: FanCloud, loop, p, edges):
     """Triangles (p, b, a) for every boundary half-edge a -> b, if p sees the loop as a star."""
-    nrm = fc.normals[p]
-    rel = fc.points[loop] - fc.points[p]
-    u = np.cross(nrm, [1.0, 0, 0] if abs(nrm[0]) < 0.9 else [0, 1.0, 0])
-    u /= np.linalg.norm(u)
-    v = np.cross(nrm, u)
-    ang = np.arctan2(rel @ v, rel @ u)
-    # the filling runs the loop backwards: around p that must be counter-clockwise
-    steps = np.mod(ang[:-1] - ang[1:], 2 * np.pi)
-    steps = np.append(steps, np.mod(ang[-1] - ang[0], 2 * np.pi))
-    if not np.isclose(steps.sum(), 2 * np.pi, atol=1e-6) or np.any(steps >= np.pi):
+    triangles, vt_off, vt = edges
+    loop = np.ascontiguousarray(loop, dtype=np.int64)
+    if not MK.star_fits(fc.points, fc.normals, loop, int(p), triangles, vt_off, vt):
         return None
-    tris = []
     m = len(loop)
-    for j in range(m):
-        a, b = int(loop[j]), int(loop[(j + 1) % m])
-        if _has_edge(edges, p, a):
-            return None
-        tris.append((p, b, a))
-    return tris
-
-
+    return [(int(p), int(loop[(j + 1) % m]), int(loop[j])) for j in range(m)]

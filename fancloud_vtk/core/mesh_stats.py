@@ -160,55 +160,73 @@ def _build_edges(tri, n):
 
     A counting sort on the lower vertex, then an insertion sort on the
     higher one inside each (small) bucket: edges come out in increasing
-    ``(lo, hi)``, the half-edges of an edge in increasing number.
+    ``(lo, hi)``, the half-edges of an edge in increasing number. Also
+    returns the half-edges ordered by edge (``order``) and where each
+    edge's start in it (``at``).
     """
-    n_half = 3 * tri.shape[0]
+    m = tri.shape[0]
+    n_half = 3 * m
     start = np.zeros(n + 1, dtype=np.int64)
-    for h in range(n_half):
-        start[_edge_key(tri, h)[0] + 1] += 1
+    for t in range(m):
+        for k in range(3):
+            start[min(tri[t, k], tri[t, (k + 1) % 3]) + 1] += 1
     for v in range(n):
         start[v + 1] += start[v]
+    # the half-edges by lower vertex (in increasing number), with their higher vertex
     order = np.empty(n_half, dtype=np.int64)
-    for h in range(n_half):
-        lo = _edge_key(tri, h)[0]
-        order[start[lo]] = h
-        start[lo] += 1
-    for v in range(n - 1, 0, -1):  # restore the bucket starts
-        start[v] = start[v - 1]
-    start[0] = 0
-    for v in range(n):
-        for a in range(start[v] + 1, start[v + 1]):
-            x = order[a]
-            hx = _edge_key(tri, x)[1]
-            b = a - 1
-            while b >= start[v] and _edge_key(tri, order[b])[1] > hx:
-                order[b + 1] = order[b]
-                b -= 1
-            order[b + 1] = x
+    high = np.empty(n_half, dtype=np.int64)
+    fill = start[:n].copy()
+    for t in range(m):
+        for k in range(3):
+            a = tri[t, k]
+            b = tri[t, (k + 1) % 3]
+            lo = min(a, b)
+            at = fill[lo]
+            order[at] = 3 * t + k
+            high[at] = max(a, b)
+            fill[lo] = at + 1
     edge = np.empty(n_half, dtype=np.int64)
     count = np.zeros(n_half, dtype=np.int64)
     first = np.empty(n_half, dtype=np.int64)
+    at = np.empty(n_half + 1, dtype=np.int64)
     twin = np.full(n_half, -1, dtype=np.int64)
     n_edges = 0
-    plo = -1
-    phi = -1
-    for a in range(n_half):
-        h = order[a]
-        lo, hi = _edge_key(tri, h)
-        if lo != plo or hi != phi:
-            first[n_edges] = a  # position for now
+    for v in range(n):
+        s = start[v]
+        for a in range(s + 1, start[v + 1]):  # stable insertion sort on the higher vertex
+            x = order[a]
+            hx = high[a]
+            b = a - 1
+            while b >= s and high[b] > hx:
+                order[b + 1] = order[b]
+                high[b + 1] = high[b]
+                b -= 1
+            order[b + 1] = x
+            high[b + 1] = hx
+        a = s
+        while a < start[v + 1]:
+            c = a + 1
+            while c < start[v + 1] and high[c] == high[a]:
+                c += 1
+            for q in range(a, c):
+                edge[order[q]] = n_edges
+            count[n_edges] = c - a
+            first[n_edges] = order[a]
+            at[n_edges] = a
+            if c - a == 2:
+                twin[order[a]] = order[a + 1]
+                twin[order[a + 1]] = order[a]
             n_edges += 1
-            plo = lo
-            phi = hi
-        edge[h] = n_edges - 1
-        count[n_edges - 1] += 1
-    for e in range(n_edges):
-        a = first[e]
-        if count[e] == 2:
-            twin[order[a]] = order[a + 1]
-            twin[order[a + 1]] = order[a]
-        first[e] = order[a]
-    return edge, count[:n_edges].copy(), first[:n_edges].copy(), twin
+            a = c
+    at[n_edges] = n_half
+    return (
+        edge,
+        count[:n_edges].copy(),
+        first[:n_edges].copy(),
+        twin,
+        order,
+        at[: n_edges + 1].copy(),
+    )
 
 
 @njit(cache=True)
@@ -276,16 +294,48 @@ def _umbrella_kernel(tri, edge, first, n):
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _inconsistent_kernel(tri, count, first, twin):
     """Edges of two triangles that run the same way in both."""
     n = 0
-    for e in range(count.size):
+    for e in prange(count.size):
         if count[e] == 2:
             h = first[e]
             g = twin[h]
             if tri[h // 3, h % 3] == tri[g // 3, g % 3]:
                 n += 1
+    return n
+
+
+@njit(cache=True, parallel=True)
+def _duplicates_kernel(tri, edge, order, at):
+    """Triangles whose vertices are those of a lower-numbered triangle.
+
+    Such a triangle has the same first edge: only the triangles on that edge
+    are compared.
+    """
+    n = 0
+    for t in prange(tri.shape[0]):
+        e = edge[3 * t]
+        if at[e + 1] - at[e] < 2:
+            continue
+        a = tri[t, 0]
+        b = tri[t, 1]
+        c = tri[t, 2]
+        for q in range(at[e], at[e + 1]):
+            s = order[q] // 3
+            if s >= t:
+                break  # in increasing order
+            x = tri[s, 0]
+            y = tri[s, 1]
+            z = tri[s, 2]
+            if (
+                (x == a or x == b or x == c)
+                and (y == a or y == b or y == c)
+                and (z == a or z == b or z == c)
+            ):
+                n += 1
+                break
     return n
 
 
@@ -296,13 +346,14 @@ class _HalfEdges:
     (from ``tri[t, k]`` to ``tri[t, (k + 1) % 3]``) its ``edge`` id (edges
     numbered in increasing (lower, higher) vertex) and its ``twin``, the
     other half-edge of an edge with exactly two (else -1); for each edge its
-    ``count`` of half-edges and its lowest-numbered half-edge ``first``.
+    ``count`` of half-edges and its lowest-numbered half-edge ``first``;
+    edge ``e``'s half-edges are ``order[at[e]:at[e + 1]]``.
     """
 
     def __init__(self, tri: np.ndarray) -> None:
         self.tri = tri
         n = int(tri.max()) + 1 if tri.size else 0
-        self.edge, self.count, self.first, self.twin = _build_edges(tri, n)
+        self.edge, self.count, self.first, self.twin, self.order, self.at = _build_edges(tri, n)
 
 
 def _components(he: _HalfEdges) -> int:
@@ -574,6 +625,41 @@ def _triangle_frames(points, tri, area_tol, tol):
             lo[t, c] = min(x0, x1, x2) - pad
             hi[t, c] = max(x0, x1, x2) + pad
     return normal, longest, lo, hi, flat
+
+
+@njit(cache=True, parallel=True)
+def _flat_count(points, tri, area_tol):
+    """Number of triangles of zero area, as ``flat`` of :func:`_triangle_frames`."""
+    n = 0
+    for t in prange(tri.shape[0]):
+        best = -1.0
+        kb = 0
+        for k in range(3):
+            a = tri[t, (k + 1) % 3]
+            b = tri[t, (k + 2) % 3]
+            d2 = 0.0
+            for c in range(3):
+                d = points[b, c] - points[a, c]
+                d2 += d * d
+            if d2 > best:
+                best = d2
+                kb = k
+        o = tri[t, kb]
+        a = tri[t, (kb + 1) % 3]
+        b = tri[t, (kb + 2) % 3]
+        ux = points[a, 0] - points[o, 0]
+        uy = points[a, 1] - points[o, 1]
+        uz = points[a, 2] - points[o, 2]
+        vx = points[b, 0] - points[o, 0]
+        vy = points[b, 1] - points[o, 1]
+        vz = points[b, 2] - points[o, 2]
+        nx = uy * vz - uz * vy
+        ny = uz * vx - ux * vz
+        nz = ux * vy - uy * vx
+        nn = np.sqrt(nx * nx + ny * ny + nz * nz)
+        if nn <= area_tol * best or nn == 0.0:
+            n += 1
+    return n
 
 
 @njit(cache=True)
@@ -1121,9 +1207,12 @@ def mesh_statistics(points, triangles, *, self_intersections: bool = True) -> di
     inconsistent = int(_inconsistent_kernel(good, count, he.first, he.twin))
 
     if m:
-        _, _, _, _, flat = _triangle_frames(pts, tri, AREA_TOL, INTERSECTION_TOL)
-        degenerate = int(np.count_nonzero(collapsed | flat))
-        duplicates = m - _distinct_rows(np.sort(tri, axis=1))
+        # a collapsed triangle is flat too (zero cross product)
+        degenerate = int(_flat_count(pts, tri, AREA_TOL))
+        duplicates = int(_duplicates_kernel(good, he.edge, he.order, he.at))
+        bad = tri[collapsed]
+        if bad.shape[0]:  # a collapsed triangle can only repeat a collapsed one
+            duplicates += bad.shape[0] - _distinct_rows(np.sort(bad, axis=1))
     else:
         degenerate = duplicates = 0
 
