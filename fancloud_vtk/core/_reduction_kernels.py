@@ -719,75 +719,127 @@ def reform_batch(points, normals, R, rlen, ropen, IN, nin, acc, buf_off, stamps,
 
 
 @njit(cache=True)
-def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len,
-                 buf_open, ok, frames, limit, counters, order, detail, rem_off, rem_ring,
-                 rem_open, log_off, ent_x, ent_open, ent_off, ent_ring, stamp):
-    """Phase B, in index order: log and apply the first ``limit`` removals that can be made.
+def _plan_commit(rlen, IN, nin, key, acc, ok, limit, counters):
+    """Which removals a round makes and where their logs go.
 
-    A point whose fans cannot all be re-formed stays, its key set to inf.
-    Returns the fans whose rings changed (each once).
+    The first ``limit`` accepted points whose fans can all be re-formed, in
+    index order (the others keep their place, with an infinite key). Returns
+    (idx into acc, and the running offsets of the removed rings, the log
+    entries and the logged rings: each (m + 1,), starting at the totals so far).
     """
-    changed = np.empty(buf_off[acc.shape[0]], np.int64)
-    n_changed = 0
-    counters[5] += 1
-    tag = counters[5]
-    done = 0
-    for i in range(acc.shape[0]):
-        p = acc[i]
+    n_acc = acc.shape[0]
+    idx = np.empty(n_acc, np.int64)
+    m = 0
+    for i in range(n_acc):
         if not ok[i]:
-            key[p] = INF
+            key[acc[i]] = INF
             continue
-        if done == limit:
+        if m == limit:
             break
-        done += 1
-        r = counters[1]
-        k = rlen[p]
+        idx[m] = i
+        m += 1
+    rem_at = np.empty(m + 1, np.int64)
+    ent_at = np.empty(m + 1, np.int64)
+    ring_at = np.empty(m + 1, np.int64)
+    rem_at[0] = counters[4]
+    ent_at[0] = counters[2]
+    ring_at[0] = counters[3]
+    for j in range(m):
+        p = acc[idx[j]]
+        rem_at[j + 1] = rem_at[j] + rlen[p]
+        ent_at[j + 1] = ent_at[j] + nin[p]
+        s = 0
+        for t in range(nin[p]):
+            s += rlen[IN[p, t]]
+        ring_at[j + 1] = ring_at[j] + s
+    return idx[:m], rem_at, ent_at, ring_at
+
+
+@njit(cache=True, parallel=True)
+def _write_logs(R, rlen, ropen, IN, nin, acc, frames, idx, rem_at, ent_at, ring_at, r0, order,
+                detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off, ent_ring):
+    """The logs of the removals ``acc[idx]`` (numbers r0, r0 + 1, ...), before any applies."""
+    for j in prange(idx.shape[0]):
+        i = idx[j]
+        p = acc[i]
+        r = r0 + j
         order[r] = p
         for c in range(6):
             detail[r, c] = frames[i, c]
-        for a in range(k):
-            rem_ring[counters[4] + a] = R[p, a]
-        counters[4] += k
-        rem_off[r + 1] = counters[4]
+        for a in range(rlen[p]):
+            rem_ring[rem_at[j] + a] = R[p, a]
+        rem_off[r + 1] = rem_at[j + 1]
         rem_open[r] = ropen[p]
-        n_aff = nin[p]
-        for j in range(n_aff):
-            x = IN[p, j]
-            e_i = counters[2]
-            ent_x[e_i] = x
-            ent_open[e_i] = ropen[x]
+        at = ring_at[j]
+        for t in range(nin[p]):
+            x = IN[p, t]
+            e = ent_at[j] + t
+            ent_x[e] = x
+            ent_open[e] = ropen[x]
             for a in range(rlen[x]):
-                ent_ring[counters[3] + a] = R[x, a]
-            counters[3] += rlen[x]
-            counters[2] += 1
-            ent_off[counters[2]] = counters[3]
-        log_off[r + 1] = counters[2]
-        counters[1] += 1
+                ent_ring[at + a] = R[x, a]
+            at += rlen[x]
+            ent_off[e + 1] = at
+        log_off[r + 1] = ent_at[j + 1]
+
+
+@njit(cache=True)
+def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
+           buf_open, stamp, tag):
+    """Make the removals ``acc[idx]``: fans re-formed, in-lists kept; the changed fans, once."""
+    total = 0
+    for j in range(idx.shape[0]):
+        total += nin[acc[idx[j]]]
+    changed = np.empty(total, np.int64)
+    n_changed = 0
+    for j in range(idx.shape[0]):
+        i = idx[j]
+        p = acc[i]
         active[p] = False
-        counters[0] -= 1
         key[p] = INF
-        # copy the affected list: the in-list of p empties as its fans change
+        n_aff = nin[p]
         first = n_changed
-        for j in range(n_aff):
-            x = IN[p, j]
-            changed[n_changed] = x
+        for t in range(n_aff):  # a copy: p's in-list empties as its fans change
+            changed[n_changed] = IN[p, t]
             n_changed += 1
-        for a in range(k):
+        for a in range(rlen[p]):
             _in_remove(IN, nin, over, R[p, a], p)
-        for j in range(n_aff):
-            x = changed[first + j]
-            b = buf_off[i] + j
+        for t in range(n_aff):
+            x = changed[first + t]
+            b = buf_off[i] + t
             _set_ring(R, rlen, IN, nin, over, x, buf[b], buf_len[b])
             ropen[x] = buf_open[b]
-    # each changed fan once
     m = 0
-    for i in range(n_changed):
-        x = changed[i]
+    for t in range(n_changed):
+        x = changed[t]
         if stamp[x] != tag:
             stamp[x] = tag
             changed[m] = x
             m += 1
     return changed[:m]
+
+
+def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len,
+                 buf_open, ok, frames, limit, counters, order, detail, rem_off, rem_ring,
+                 rem_open, log_off, ent_x, ent_open, ent_off, ent_ring, stamp):
+    """Phase B: log (in parallel) and apply (in index order) the removals a round makes.
+
+    A point whose fans cannot all be re-formed stays, its key set to inf.
+    Returns the fans whose rings changed (each once).
+    """
+    idx, rem_at, ent_at, ring_at = _plan_commit(rlen, IN, nin, key, acc, ok, limit, counters)
+    m = len(idx)
+    r0 = int(counters[1])
+    _write_logs(R, rlen, ropen, IN, nin, acc, frames, idx, rem_at, ent_at, ring_at, r0, order,
+                detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off, ent_ring)
+    counters[1] += m
+    counters[0] -= m
+    counters[2] = ent_at[m]
+    counters[3] = ring_at[m]
+    counters[4] = rem_at[m]
+    counters[5] += 1
+    return _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
+                  buf_open, stamp, counters[5])
 
 
 @njit(cache=True, parallel=True)
