@@ -502,8 +502,9 @@ def _ours_reducer(weights, method="entropy"):
         t1 = time.perf_counter()
         small = reduce(fc, target, weights=weights, method=method)
         t2 = time.perf_counter()
-        # its fans are re-formed Delaunay rings: meshed as they are (docs/entropy.md)
-        mesh = fan_cloud_to_mesh(small, rings="fans", self_intersections=False)
+        # for the measures; rings as the reduce filter meshes them (docs/entropy.md)
+        rings = "delaunay" if data["from_points"] else "fans"
+        mesh = fan_cloud_to_mesh(small, rings=rings, self_intersections=False)
         t3 = time.perf_counter()
         out_colors = mesh.point_data.get("RGB", small.point_data.get("RGB"))
         if len(mesh.points) != small.n_points:  # not expected: keep the ids only if they fit

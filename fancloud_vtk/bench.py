@@ -714,7 +714,7 @@ TARGET_TPP = (1.95, 2.05)  #: triangles per point on a closed surface
 TARGET_SELF_PCT = 0.01  #: self-intersecting triangle pairs, percent of the triangles
 TARGET_MESHLIB_RATIO = 1.0  #: our time / MeshLib's time ...
 MESHLIB_TARGET_SIZES = (100_000, 1_000_000)  #: ... at these sizes
-TARGET_BPA_SPEEDUP = 10.0  #: ball-pivoting time / our time
+TARGET_BPA_SPEEDUP = 10.0  #: ball-pivoting time / our time, at the same sizes
 
 MESH_TIMEOUT = 600.0  #: default seconds allowed to one method (warm-up included)
 SAMPLES_PER_POINT = 10  #: surface samples per input point for the distance
@@ -907,8 +907,10 @@ def mesh_rows(res: dict) -> list[dict]:
             ("meshlib", "speed: time ours / MeshLib", "ratio",
              f"<= {TARGET_MESHLIB_RATIO:g} (at 100k, 1M)" if n in MESHLIB_TARGET_SIZES else "",
              (lambda v: v <= TARGET_MESHLIB_RATIO) if n in MESHLIB_TARGET_SIZES else None),
+            # the issue states both speed figures "at 100k and 1M points"
             ("ball-pivoting", "speed: ball pivoting time / ours", "speedup",
-             f">= {TARGET_BPA_SPEEDUP:g}", lambda v: v >= TARGET_BPA_SPEEDUP),
+             f">= {TARGET_BPA_SPEEDUP:g} (at 100k, 1M)" if n in MESHLIB_TARGET_SIZES else "",
+             (lambda v: v >= TARGET_BPA_SPEEDUP) if n in MESHLIB_TARGET_SIZES else None),
         ):
             p = _find(ds, peer)
             if p is None:

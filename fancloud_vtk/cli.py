@@ -265,7 +265,9 @@ def cmd_reduce(args) -> int:
             ("weights", str(tuple(args.weights))), ("method", args.method),
             ("time: read and fans", f"{t1 - t0:.2f} s"), ("time: reduction", f"{t2 - t1:.2f} s")]
     if args.mesh:
-        mesh = fan_cloud_to_mesh(small, rings="fans")  # re-formed rings: meshed as they are
+        from fancloud_vtk.algorithms.reduce import mesh_rings
+
+        mesh = fan_cloud_to_mesh(small, rings=mesh_rings(kind))
         write_mesh(mesh_to_vtk(mesh), args.output)
         rows += [("triangles", f"{mesh.n_triangles:,}"), ("holes", f"{mesh.stats['holes']}")]
     else:

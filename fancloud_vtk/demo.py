@@ -88,7 +88,7 @@ def render_panels(panels, path: str) -> None:
     for i, (title, fc) in enumerate(panels):
         pl.subplot(0, i)
         pl.add_text(title, font_size=10)
-        mesh = fan_cloud_to_mesh(fc, rings="fans", self_intersections=False)
+        mesh = fan_cloud_to_mesh(fc, self_intersections=False)
         pl.add_mesh(pv.wrap(mesh_to_vtk(mesh)), color="#d8c8a8", show_edges=True,
                     edge_color="#9c8f75", line_width=0.3, specular=0.3)
     pl.link_views()

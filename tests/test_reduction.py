@@ -49,7 +49,7 @@ def test_keep_fraction_and_fans_are_valid(sphere_fans):
     assert out.n_points == round(0.176 * 4000)
     out.validate()
     # the kept fans form a closed surface again
-    mesh = fan_cloud_to_mesh(out, rings="fans")
+    mesh = fan_cloud_to_mesh(out)
     assert mesh.stats["non_manifold_edges"] == 0
     assert mesh.stats["boundary_edges"] == 0
     assert mesh.n_triangles == 2 * out.n_points - 4
@@ -101,7 +101,7 @@ def test_triangle_mesh_input(bunny):
     p, f, _ = bunny
     out = reduce(fan_cloud_of_mesh(p, f), keep=0.2)
     assert out.n_points == round(0.2 * len(p))
-    mesh = fan_cloud_to_mesh(out, rings="fans")
+    mesh = fan_cloud_to_mesh(out)
     assert mesh.stats["non_manifold_edges"] == 0
 
 
@@ -263,5 +263,5 @@ def test_exact_greedy_order(sphere_fans, method):
     assert out.n_points == 800
     np.testing.assert_array_equal(h.level(4000).ring, sphere_fans.ring)
     # the same kind of result as the rounds: a closed surface, near-uniform with distance
-    mesh = fan_cloud_to_mesh(out, rings="fans")
+    mesh = fan_cloud_to_mesh(out)
     assert mesh.n_triangles == 2 * 800 - 4

@@ -10,8 +10,22 @@ from fancloud_vtk.core.reduction import hierarchy, laplacian_smooth, reduce, tar
 from fancloud_vtk.params import FAN_PARAMS, REDUCE_PARAMS, SELECTIVE_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
-from .convert import INPUT_KIND, add_string_field, fancloud_to_vtk, input_fan_cloud, mesh_to_vtk
+from .convert import (
+    INPUT_KIND,
+    KIND_MESH,
+    add_string_field,
+    fancloud_to_vtk,
+    input_fan_cloud,
+    mesh_to_vtk,
+)
 from .entropy import fan_values
+
+
+def mesh_rings(kind: str) -> str:
+    """How to mesh a reduced fan cloud: the re-formed fans of a mesh's one-rings are
+    consistent already (``'fans'``); those grown from a point set's fans are not
+    everywhere (``'delaunay'``). See docs/entropy.md."""
+    return "fans" if kind == KIND_MESH else "delaunay"
 
 
 def _amount(values: dict) -> dict:
@@ -63,8 +77,7 @@ class FanCloudReduceFilter(FanCloudAlgorithm):
         if values["mesh"]:
             if self._progress(0.9, "mesh"):
                 raise Cancelled("meshing was cancelled")
-            # its fans are re-formed local Delaunay rings already: mesh them as they are
-            out = mesh_to_vtk(fan_cloud_to_mesh(small, rings="fans"))
+            out = mesh_to_vtk(fan_cloud_to_mesh(small, rings=mesh_rings(kind)))
         else:
             out = fancloud_to_vtk(small)
         add_string_field(out, INPUT_KIND, kind)

@@ -12,6 +12,10 @@ from numba import njit, prange
 
 from ._fan_kernels import _atan2_2pi
 
+#: a candidate whose normal makes more than 120 degrees with the point's is on the
+#: other side of a thin part: never a Delaunay neighbour
+FACING = -0.5
+
 
 @njit(cache=True)
 def _opposite(points, normals, x, y, u, v):
@@ -686,6 +690,9 @@ def _delaunay_ring(
     mm = 0
     for c in range(m):
         q = cand[c]
+        if (normals[q, 0] * normals[p, 0] + normals[q, 1] * normals[p, 1]
+                + normals[q, 2] * normals[p, 2]) < FACING:
+            continue  # the other side of a thin part: never a neighbour
         dx = points[q, 0] - points[p, 0]
         dy = points[q, 1] - points[p, 1]
         dz = points[q, 2] - points[p, 2]

@@ -21,13 +21,11 @@ import numpy as np
 from numba import njit, prange
 
 from ._entropy_kernels import point_cc, point_terms
-from ._mesh_kernels import _hull_ring, _tangent
+from ._mesh_kernels import FACING, _hull_ring, _tangent
 
 METHOD_ENTROPY = 0
 METHOD_ERROR = 1
 INF = np.inf
-#: a candidate whose normal makes more than 120 degrees with x's is not x's neighbour
-FACING = -0.5
 
 
 # -- indexed binary heap (key, index) ------------------------------------------------
