@@ -93,6 +93,18 @@ def point_arrays(dataset) -> dict[str, np.ndarray]:
     return out
 
 
+def pop_normals(arrays: dict) -> np.ndarray | None:
+    """Take the ``Normals`` point array out of ``arrays`` if it has 3 components.
+
+    Any other ``Normals`` array stays among the passthrough arrays.
+    """
+    normals = arrays.pop(NORMALS, None)
+    if normals is not None and (normals.ndim != 2 or normals.shape[1] != 3):
+        arrays[NORMALS] = normals
+        return None
+    return normals
+
+
 def points_of(dataset) -> np.ndarray:
     """The points of a ``vtkPointSet`` as an (n, 3) numpy copy (float64)."""
     if dataset is None or not dataset.IsA("vtkPointSet"):
@@ -412,10 +424,7 @@ def input_fan_cloud(dataset, fan_values: dict, progress=None) -> tuple[FanCloud,
         return fancloud_from_vtk(dataset), KIND_FANS
     points = points_of(dataset)
     arrays = point_arrays(dataset)
-    normals = arrays.pop(NORMALS, None)
-    if normals is not None and (normals.ndim != 2 or normals.shape[1] != 3):
-        arrays[NORMALS] = normals
-        normals = None
+    normals = pop_normals(arrays)
     tri = triangles_of(dataset)
     if tri is not None:
         if normals is not None and not (np.linalg.norm(normals, axis=1) > 0).all():

@@ -6,7 +6,7 @@ from fancloud_vtk.core.fans import build_fans
 from fancloud_vtk.params import FAN_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
-from .convert import NORMALS, fancloud_to_vtk, point_arrays, points_of
+from .convert import fancloud_to_vtk, point_arrays, points_of, pop_normals
 
 
 @with_parameters(FAN_PARAMS)
@@ -44,10 +44,7 @@ class FanCloudFilter(FanCloudAlgorithm):
     def execute(self, dataset):
         points = points_of(dataset)
         arrays = point_arrays(dataset)
-        normals = arrays.pop(NORMALS, None)
-        if normals is not None and (normals.ndim != 2 or normals.shape[1] != 3):
-            arrays[NORMALS] = normals
-            normals = None
+        normals = pop_normals(arrays)
         fc = build_fans(points, normals=normals, point_data=arrays, progress=self._progress,
                         **self._values)
         return fancloud_to_vtk(fc)

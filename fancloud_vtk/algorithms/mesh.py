@@ -7,7 +7,14 @@ from fancloud_vtk.core.mesh import fan_cloud_to_mesh
 from fancloud_vtk.params import FAN_PARAMS, MESH_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
-from .convert import NORMALS, fancloud_from_vtk, is_fancloud, mesh_to_vtk, point_arrays, points_of
+from .convert import (
+    fancloud_from_vtk,
+    is_fancloud,
+    mesh_to_vtk,
+    point_arrays,
+    points_of,
+    pop_normals,
+)
 
 
 @with_parameters(FAN_PARAMS + MESH_PARAMS)
@@ -45,10 +52,7 @@ class FanCloudMeshFilter(FanCloudAlgorithm):
             fc = fancloud_from_vtk(dataset)
         else:
             arrays = point_arrays(dataset)
-            normals = arrays.pop(NORMALS, None)
-            if normals is not None and (normals.ndim != 2 or normals.shape[1] != 3):
-                arrays[NORMALS] = normals
-                normals = None
+            normals = pop_normals(arrays)
             fc = build_fans(points_of(dataset), normals=normals, point_data=arrays,
                             progress=lambda f, m: self._progress(0.5 * f, m),
                             **{p.name: values[p.name] for p in FAN_PARAMS})

@@ -667,6 +667,93 @@ def _hull_ring(xs, ys, m, idx, order, hull, origin_inside):
 
 
 @njit(cache=True)
+def inversions(points, normals, p, cand, m, xs, ys):
+    """The candidates ``cand[:m]`` in p's tangent plane, inverted: ``q / |q|^2``.
+
+    Candidates on the other side of a thin part (normal at more than 120
+    degrees from p's) or at p itself are dropped; the rest are compacted in
+    ``cand`` with their inversions in ``xs``, ``ys``. Returns their number.
+    """
+    ux, uy, uz, vx, vy, vz = _tangent(normals[p, 0], normals[p, 1], normals[p, 2])
+    mm = 0
+    for c in range(m):
+        q = cand[c]
+        if (normals[q, 0] * normals[p, 0] + normals[q, 1] * normals[p, 1]
+                + normals[q, 2] * normals[p, 2]) < FACING:
+            continue
+        dx = points[q, 0] - points[p, 0]
+        dy = points[q, 1] - points[p, 1]
+        dz = points[q, 2] - points[p, 2]
+        x = dx * ux + dy * uy + dz * uz
+        y = dx * vx + dy * vy + dz * vz
+        r2 = x * x + y * y
+        if r2 <= 0.0:
+            continue
+        cand[mm] = q
+        xs[mm] = x / r2
+        ys[mm] = y / r2
+        mm += 1
+    return mm
+
+
+@njit(cache=True)
+def closed_ring(xs, ys, mm, cand, order, hull, max_ring, out):
+    """A closed Delaunay ring into ``out``: the hull vertices of the inversions,
+    counter-clockwise from the smallest point index. -1 if they do not
+    surround the point or are more than ``max_ring``."""
+    if mm < 3:
+        return -1
+    h = _hull_ring(xs, ys, mm, cand, order, hull, True)
+    if h < 3 or h > max_ring:
+        return -1
+    first = 0
+    for t in range(1, h):
+        if cand[hull[t]] < cand[hull[first]]:
+            first = t
+    for t in range(h):
+        out[t] = cand[hull[(first + t) % h]]
+    return h
+
+
+@njit(cache=True)
+def open_ring(xs, ys, mm, cand, order, hull, max_ring, out):
+    """An open Delaunay fan into ``out`` (a boundary point: its Voronoi cell is unbounded).
+
+    Its neighbours are the hull vertices of the inversions and of the point
+    itself, in order from just after it round to just before it; the point
+    is nudged a hair outward (away from the candidates) so that it stays a
+    hull vertex where the boundary is straight. -1 if there is no such fan.
+    """
+    if mm == 0:
+        return -1
+    sx = 0.0
+    sy = 0.0
+    scale = 0.0
+    for c in range(mm):
+        sx += xs[c]
+        sy += ys[c]
+        scale = max(scale, abs(xs[c]) + abs(ys[c]))
+    s = np.sqrt(sx * sx + sy * sy)
+    cand[mm] = -1
+    if s > 0.0:
+        xs[mm] = -1e-9 * scale * sx / s
+        ys[mm] = -1e-9 * scale * sy / s
+    else:
+        xs[mm] = 0.0
+        ys[mm] = 0.0
+    h = _hull_ring(xs, ys, mm + 1, cand, order, hull, False)
+    at = -1
+    for t in range(h):
+        if cand[hull[t]] == -1:
+            at = t
+    if at < 0 or h < 3 or h - 1 > max_ring:
+        return -1
+    for t in range(h - 1):
+        out[t] = cand[hull[(at + 1 + t) % h]]
+    return h - 1
+
+
+@njit(cache=True)
 def _delaunay_ring(
     points, normals, offsets, ring, is_open, p, max_ring, cand, xs, ys, order, hull, stamp, table
 ):
@@ -686,69 +773,10 @@ def _delaunay_ring(
             stamp[s] = p
             cand[m] = s
             m += 1
-    ux, uy, uz, vx, vy, vz = _tangent(normals[p, 0], normals[p, 1], normals[p, 2])
-    mm = 0
-    for c in range(m):
-        q = cand[c]
-        if (normals[q, 0] * normals[p, 0] + normals[q, 1] * normals[p, 1]
-                + normals[q, 2] * normals[p, 2]) < FACING:
-            continue  # the other side of a thin part: never a neighbour
-        dx = points[q, 0] - points[p, 0]
-        dy = points[q, 1] - points[p, 1]
-        dz = points[q, 2] - points[p, 2]
-        x = dx * ux + dy * uy + dz * uz
-        y = dx * vx + dy * vy + dz * vz
-        r2 = x * x + y * y
-        if r2 <= 0.0:
-            continue
-        cand[mm] = q
-        xs[mm] = x / r2
-        ys[mm] = y / r2
-        mm += 1
+    mm = inversions(points, normals, p, cand, m, xs, ys)
     if is_open:
-        # p on the boundary: its Voronoi cell is unbounded, and its neighbours
-        # are the hull vertices of the inversions and of p itself, in order
-        # from just after p round to just before it (an open fan)
-        # p itself, nudged a hair outward (away from the candidates) so that it
-        # stays a hull vertex where the boundary is straight (collinear)
-        if mm == 0:
-            return -1
-        sx = 0.0
-        sy = 0.0
-        scale = 0.0
-        for c in range(mm):
-            sx += xs[c]
-            sy += ys[c]
-            scale = max(scale, abs(xs[c]) + abs(ys[c]))
-        s = np.sqrt(sx * sx + sy * sy)
-        cand[mm] = -1
-        if s > 0.0:
-            xs[mm] = -1e-9 * scale * sx / s
-            ys[mm] = -1e-9 * scale * sy / s
-        else:
-            xs[mm] = 0.0
-            ys[mm] = 0.0
-        h = _hull_ring(xs, ys, mm + 1, cand, order, hull, False)
-        at = -1
-        for t in range(h):
-            if cand[hull[t]] == -1:
-                at = t
-        if at < 0 or h < 3 or h - 1 > max_ring:
-            return -1
-        for t in range(h - 1):
-            table[p, t] = cand[hull[(at + 1 + t) % h]]
-        return h - 1
-    h = _hull_ring(xs, ys, mm, cand, order, hull, True)
-    if h < 3 or h > max_ring:
-        return -1
-    # start at the hull vertex with the smallest point index (deterministic)
-    first = 0
-    for t in range(1, h):
-        if cand[hull[t]] < cand[hull[first]]:
-            first = t
-    for t in range(h):
-        table[p, t] = cand[hull[(first + t) % h]]
-    return h
+        return open_ring(xs, ys, mm, cand, order, hull, max_ring, table[p])
+    return closed_ring(xs, ys, mm, cand, order, hull, max_ring, table[p])
 
 
 @njit(cache=True, parallel=True)

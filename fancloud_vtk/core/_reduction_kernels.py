@@ -21,7 +21,7 @@ import numpy as np
 from numba import njit, prange
 
 from ._entropy_kernels import point_cc, point_terms
-from ._mesh_kernels import FACING, _hull_ring, _tangent
+from ._mesh_kernels import _tangent, closed_ring, inversions, open_ring
 
 METHOD_ENTROPY = 0
 METHOD_ERROR = 1
@@ -207,64 +207,15 @@ def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, st
             stamp[s] = tag
             cand[m] = s
             m += 1
-    ux, uy, uz, vx, vy, vz = _tangent(normals[x, 0], normals[x, 1], normals[x, 2])
-    mm = 0
-    for c in range(m):
-        q = cand[c]
-        if (normals[q, 0] * normals[x, 0] + normals[q, 1] * normals[x, 1]
-                + normals[q, 2] * normals[x, 2]) < FACING:
-            continue  # the other side of a thin part: never a fan neighbour
-        dx = points[q, 0] - points[x, 0]
-        dy = points[q, 1] - points[x, 1]
-        dz = points[q, 2] - points[x, 2]
-        u = dx * ux + dy * uy + dz * uz
-        v = dx * vx + dy * vy + dz * vz
-        r2 = u * u + v * v
-        if r2 <= 0.0:
-            continue
-        cand[mm] = q
-        xs[mm] = u / r2
-        ys[mm] = v / r2
-        mm += 1
+    mm = inversions(points, normals, x, cand, m, xs, ys)
     width = R.shape[1]
-    if not ropen[x] and mm >= 3:
-        h = _hull_ring(xs, ys, mm, cand, order, hull, True)
-        if 3 <= h <= width:
-            first = 0
-            for t in range(1, h):
-                if cand[hull[t]] < cand[hull[first]]:
-                    first = t
-            for t in range(h):
-                out[t] = cand[hull[(first + t) % h]]
+    if not ropen[x]:
+        h = closed_ring(xs, ys, mm, cand, order, hull, width, out)
+        if h > 0:
             return h, False
-    # open: the hull of the inversions and of x itself (nudged outward)
     if mm < 2:
         return -1, True
-    sx = 0.0
-    sy = 0.0
-    scale = 0.0
-    for c in range(mm):
-        sx += xs[c]
-        sy += ys[c]
-        scale = max(scale, abs(xs[c]) + abs(ys[c]))
-    s = np.sqrt(sx * sx + sy * sy)
-    cand[mm] = -1
-    if s > 0.0:
-        xs[mm] = -1e-9 * scale * sx / s
-        ys[mm] = -1e-9 * scale * sy / s
-    else:
-        xs[mm] = 0.0
-        ys[mm] = 0.0
-    h = _hull_ring(xs, ys, mm + 1, cand, order, hull, False)
-    at = -1
-    for t in range(h):
-        if cand[hull[t]] == -1:
-            at = t
-    if at < 0 or h < 3 or h - 1 > width:
-        return -1, True
-    for t in range(h - 1):
-        out[t] = cand[hull[(at + 1 + t) % h]]
-    return h - 1, True
+    return open_ring(xs, ys, mm, cand, order, hull, width, out), True
 
 
 # -- in-lists (the fans that contain a point) ----------------------------------------
