@@ -570,6 +570,41 @@ def boundary_loops(triangles) -> list[np.ndarray]:
 
 
 @njit(cache=True)
+def _longest_edge_normal(points, tri, t):
+    """(squared longest edge, cross product at the vertex facing it, its length).
+
+    The cross product of the two edges at the vertex facing the longest
+    edge: the most accurate normal of a thin triangle.
+    """
+    best = -1.0
+    kb = 0
+    for k in range(3):
+        a = tri[t, (k + 1) % 3]
+        b = tri[t, (k + 2) % 3]
+        d2 = 0.0
+        for c in range(3):
+            d = points[b, c] - points[a, c]
+            d2 += d * d
+        if d2 > best:
+            best = d2
+            kb = k
+    o = tri[t, kb]
+    a = tri[t, (kb + 1) % 3]
+    b = tri[t, (kb + 2) % 3]
+    ux = points[a, 0] - points[o, 0]
+    uy = points[a, 1] - points[o, 1]
+    uz = points[a, 2] - points[o, 2]
+    vx = points[b, 0] - points[o, 0]
+    vy = points[b, 1] - points[o, 1]
+    vz = points[b, 2] - points[o, 2]
+    nx = uy * vz - uz * vy
+    ny = uz * vx - ux * vz
+    nz = ux * vy - uy * vx
+    nn = np.sqrt(nx * nx + ny * ny + nz * nz)
+    return best, nx, ny, nz, nn
+
+
+@njit(cache=True)
 def _triangle_frames(points, tri, area_tol, tol):
     """Unit normal, longest edge, inflated bounding box, zero-area flag per triangle.
 
@@ -584,31 +619,7 @@ def _triangle_frames(points, tri, area_tol, tol):
     hi = np.empty((m, 3))
     flat = np.zeros(m, dtype=np.bool_)
     for t in range(m):
-        best = -1.0
-        kb = 0
-        for k in range(3):
-            a = tri[t, (k + 1) % 3]
-            b = tri[t, (k + 2) % 3]
-            d2 = 0.0
-            for c in range(3):
-                d = points[b, c] - points[a, c]
-                d2 += d * d
-            if d2 > best:
-                best = d2
-                kb = k
-        o = tri[t, kb]
-        a = tri[t, (kb + 1) % 3]
-        b = tri[t, (kb + 2) % 3]
-        ux = points[a, 0] - points[o, 0]
-        uy = points[a, 1] - points[o, 1]
-        uz = points[a, 2] - points[o, 2]
-        vx = points[b, 0] - points[o, 0]
-        vy = points[b, 1] - points[o, 1]
-        vz = points[b, 2] - points[o, 2]
-        nx = uy * vz - uz * vy
-        ny = uz * vx - ux * vz
-        nz = ux * vy - uy * vx
-        nn = np.sqrt(nx * nx + ny * ny + nz * nz)
+        best, nx, ny, nz, nn = _longest_edge_normal(points, tri, t)
         length = np.sqrt(best)
         longest[t] = length
         if nn <= area_tol * best or nn == 0.0:
@@ -632,31 +643,7 @@ def _flat_count(points, tri, area_tol):
     """Number of triangles of zero area, as ``flat`` of :func:`_triangle_frames`."""
     n = 0
     for t in prange(tri.shape[0]):
-        best = -1.0
-        kb = 0
-        for k in range(3):
-            a = tri[t, (k + 1) % 3]
-            b = tri[t, (k + 2) % 3]
-            d2 = 0.0
-            for c in range(3):
-                d = points[b, c] - points[a, c]
-                d2 += d * d
-            if d2 > best:
-                best = d2
-                kb = k
-        o = tri[t, kb]
-        a = tri[t, (kb + 1) % 3]
-        b = tri[t, (kb + 2) % 3]
-        ux = points[a, 0] - points[o, 0]
-        uy = points[a, 1] - points[o, 1]
-        uz = points[a, 2] - points[o, 2]
-        vx = points[b, 0] - points[o, 0]
-        vy = points[b, 1] - points[o, 1]
-        vz = points[b, 2] - points[o, 2]
-        nx = uy * vz - uz * vy
-        ny = uz * vx - ux * vz
-        nz = ux * vy - uy * vx
-        nn = np.sqrt(nx * nx + ny * ny + nz * nz)
+        best, nx, ny, nz, nn = _longest_edge_normal(points, tri, t)
         if nn <= area_tol * best or nn == 0.0:
             n += 1
     return n
