@@ -830,3 +830,96 @@ def heap_of(key, active):
     for i in range(size // 2 - 1, -1, -1):
         _sift_down(heap, hpos, key, i, size)
     return heap, hpos
+
+
+# -- tables and CSR ----------------------------------------------------------------------
+
+
+@njit(cache=True, parallel=True)
+def table_from_csr(offsets, ring, order, rename, width):
+    """Fan table: row i holds the ring of point ``order[i]``, renamed by ``rename``.
+
+    ``order``/``rename`` of length 0: the identity. Returns (R int32 (n, width), rlen).
+    """
+    n = offsets.shape[0] - 1
+    R = np.zeros((n, width), np.int32)
+    rlen = np.empty(n, np.int64)
+    ident = order.shape[0] == 0
+    for i in prange(n):
+        p = np.int64(i)
+        if not ident:
+            p = order[i]
+        k = offsets[p + 1] - offsets[p]
+        rlen[i] = k
+        for a in range(k):
+            q = ring[offsets[p] + a]
+            if not ident:
+                q = rename[q]
+            R[i, a] = q
+    return R, rlen
+
+
+@njit(cache=True)
+def csr_from_table(R, rlen, active, order):
+    """CSR rings in input order from a table in work order (row i is input point order[i]);
+    inactive points get an empty ring. Returns (offsets, ring) with input indices."""
+    n = R.shape[0]
+    sizes = np.zeros(n, np.int64)
+    for i in range(n):
+        if active[i]:
+            sizes[order[i]] = rlen[i]
+    offsets = np.zeros(n + 1, np.int64)
+    for p in range(n):
+        offsets[p + 1] = offsets[p] + sizes[p]
+    ring = np.empty(offsets[n], np.int64)
+    for i in range(n):
+        if active[i]:
+            at = offsets[order[i]]
+            for a in range(rlen[i]):
+                ring[at + a] = order[R[i, a]]
+    return offsets, ring
+
+
+@njit(cache=True)
+def compact_level(R, rlen, active):
+    """The active points, and their rings as CSR renamed to positions among them.
+
+    Returns (ids, offsets, ring); ``ok`` False if a ring refers to an inactive point.
+    """
+    n = R.shape[0]
+    rank = np.full(n, -1, np.int64)
+    m = 0
+    total = 0
+    for p in range(n):
+        if active[p]:
+            rank[p] = m
+            m += 1
+            total += rlen[p]
+    ids = np.empty(m, np.int64)
+    offsets = np.zeros(m + 1, np.int64)
+    ring = np.empty(total, np.int64)
+    ok = True
+    j = 0
+    at = 0
+    for p in range(n):
+        if not active[p]:
+            continue
+        ids[j] = p
+        for a in range(rlen[p]):
+            r = rank[R[p, a]]
+            if r < 0:
+                ok = False
+            ring[at] = r
+            at += 1
+        offsets[j + 1] = at
+        j += 1
+    return ids, offsets, ring, ok
+
+
+@njit(cache=True, parallel=True)
+def renamed(arr, perm):
+    """``perm[arr]`` as int32 (point indices of the logs, from work to input order)."""
+    out = np.empty(arr.shape[0], np.int32)
+    for i in prange(arr.shape[0]):
+        out[i] = perm[arr[i]]
+    return out

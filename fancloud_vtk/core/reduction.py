@@ -136,14 +136,8 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
     pts = np.ascontiguousarray(fc.points[perm])
     nrm = np.ascontiguousarray(fc.normals[perm])
     col = np.ascontiguousarray(rgb[perm]) if rgb is not None else np.zeros((0, 3))
-    sizes = fc.fan_sizes[perm]
-    width = max(MIN_WIDTH, int(sizes.max(initial=0)) + 8)
-    R = np.zeros((n, width), np.int32)
-    rows = np.repeat(np.arange(n), sizes)
-    first = np.repeat(np.cumsum(sizes) - sizes, sizes)
-    src = _gather_rings(fc, perm)
-    R[rows, np.arange(len(rows)) - first] = rank[src]
-    rlen = sizes.astype(np.int64)
+    width = max(MIN_WIDTH, int(fc.fan_sizes.max(initial=0)) + 8)
+    R, rlen = RK.table_from_csr(fc.offsets, fc.ring, perm, rank, width)
     ropen = np.ascontiguousarray(fc.open[perm])
     active = np.ones(n, bool)
     IN, nin, over = RK.build_in_lists(R, rlen, IN_WIDTH)
@@ -189,17 +183,7 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
             f"without breaking a fan (asked for {target})"
         )
     # the coarsest level's fans, and everything renamed back to the input's indices
-    coarse_sizes = np.where(active, rlen, 0)
-    coarse_sizes_in = np.zeros(n, np.int64)
-    coarse_sizes_in[perm] = coarse_sizes
-    coarse_off = np.zeros(n + 1, np.int64)
-    np.cumsum(coarse_sizes_in, out=coarse_off[1:])
-    mask = np.arange(width)[None, :] < coarse_sizes[:, None]
-    table_in = np.zeros((n, width), np.int64)
-    table_in[perm] = perm[R.astype(np.int64)]
-    mask_in = np.zeros_like(mask)
-    mask_in[perm] = mask
-    coarse_ring = table_in[mask_in]
+    coarse_off, coarse_ring = RK.csr_from_table(R, rlen, active, perm)
     coarse_open = np.zeros(n, bool)
     coarse_open[perm] = ropen
     n_ent = int(counters[2])
@@ -207,14 +191,14 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
         source=fc,
         order=perm[order[:r]],
         rem_off=rem_off[: r + 1].copy(),
-        rem_ring=perm[rem_ring[: rem_off[r]]],
+        rem_ring=RK.renamed(rem_ring[: rem_off[r]], perm),
         rem_open=rem_open[:r].copy(),
         detail=detail[:r].copy(),
         log_off=log_off[: r + 1].copy(),
-        ent_x=perm[ent_x[:n_ent]],
+        ent_x=RK.renamed(ent_x[:n_ent], perm),
         ent_open=ent_open[:n_ent].copy(),
         ent_off=ent_off[: n_ent + 1].copy(),
-        ent_ring=perm[ent_ring[: ent_off[n_ent]]],
+        ent_ring=RK.renamed(ent_ring[: ent_off[n_ent]], perm),
         coarse_off=coarse_off,
         coarse_ring=coarse_ring,
         coarse_open=coarse_open,
@@ -295,14 +279,6 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
         RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, w, method, dbar, changed,
                        with_cc)
         _report(progress, counters[1] / max(n_remove, 1), "reduction")
-
-
-def _gather_rings(fc: FanCloud, perm: np.ndarray) -> np.ndarray:
-    """The rings of the points in ``perm`` order, concatenated (input indices)."""
-    sizes = fc.fan_sizes[perm]
-    starts = np.repeat(fc.offsets[perm], sizes)
-    first = np.repeat(np.cumsum(sizes) - sizes, sizes)
-    return fc.ring[starts + np.arange(int(sizes.sum())) - first]
 
 
 def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, method="entropy",
@@ -401,6 +377,16 @@ def laplacian_smooth(fancloud: FanCloud, iterations: int = 1, factor: float = 0.
     return out
 
 
+def _indices(arr) -> np.ndarray:
+    """Point indices as int32 (the logs are long: half the memory) or int64 past 2**31."""
+    arr = np.asarray(arr)
+    if arr.dtype.kind not in "iu":
+        raise ValueError(f"hierarchy index arrays must be integers, got {arr.dtype}")
+    if arr.dtype == np.int32 or (len(arr) and arr.max() >= 2**31):
+        return np.ascontiguousarray(arr)
+    return arr.astype(np.int32)
+
+
 class Hierarchy:
     """Levels of detail of a fan cloud: the record of a reduction (section 6).
 
@@ -433,14 +419,14 @@ class Hierarchy:
         self.original_id = np.asarray(original, dtype=np.int64)
         self.order = np.asarray(order, np.int64)
         self.rem_off = np.asarray(rem_off, np.int64)
-        self.rem_ring = np.asarray(rem_ring, np.int64)
+        self.rem_ring = _indices(rem_ring)
         self.rem_open = np.asarray(rem_open, bool)
         self.detail = np.asarray(detail, np.float64)
         self.log_off = np.asarray(log_off, np.int64)
-        self.ent_x = np.asarray(ent_x, np.int64)
+        self.ent_x = _indices(ent_x)
         self.ent_open = np.asarray(ent_open, bool)
         self.ent_off = np.asarray(ent_off, np.int64)
-        self.ent_ring = np.asarray(ent_ring, np.int64)
+        self.ent_ring = _indices(ent_ring)
         self.coarse_off = np.asarray(coarse_off, np.int64)
         self.coarse_ring = np.asarray(coarse_ring, np.int64)
         self.coarse_open = np.asarray(coarse_open, bool)
@@ -503,13 +489,11 @@ class Hierarchy:
     def _state(self, m: int):
         """Fan table, lengths, open flags and active mask of level m."""
         n = self.n_points
-        sizes = np.diff(self.coarse_off)
-        width = max(int(sizes.max(initial=0)), int(np.diff(self.rem_off).max(initial=0)),
+        width = max(int(np.diff(self.coarse_off).max(initial=0)),
+                    int(np.diff(self.rem_off).max(initial=0)),
                     int(np.diff(self.ent_off).max(initial=0)), 1)
-        R = np.zeros((n, width), np.int64)
-        rows = np.repeat(np.arange(n), sizes)
-        R[rows, np.arange(len(rows)) - self.coarse_off[rows]] = self.coarse_ring
-        rlen = sizes.astype(np.int64)
+        none = np.zeros(0, np.int64)
+        R, rlen = RK.table_from_csr(self.coarse_off, self.coarse_ring, none, none, width)
         ropen = self.coarse_open.copy()
         active = np.ones(n, bool)
         active[self.order] = False
@@ -608,15 +592,8 @@ class Hierarchy:
         return RK.measure_detail(pts, nrm, self.order, self.rem_off, self.rem_ring)
 
     def _fan_cloud(self, pts, nrm, R, rlen, ropen, active) -> FanCloud:
-        ids = np.flatnonzero(active)
-        rank = np.full(self.n_points, -1, np.int64)
-        rank[ids] = np.arange(len(ids))
-        sizes = rlen[ids]
-        offsets = np.zeros(len(ids) + 1, np.int64)
-        np.cumsum(sizes, out=offsets[1:])
-        mask = np.arange(R.shape[1])[None, :] < sizes[:, None]
-        ring = rank[R[ids][mask]]
-        if len(ring) and ring.min() < 0:
+        ids, offsets, ring, ok = RK.compact_level(R, rlen, active)
+        if not ok:
             raise RuntimeError("internal error: a fan of the level refers to a removed point")
         pdata = {k: v[ids].copy() for k, v in self.source.point_data.items()}
         pdata[ORIGINAL_ID] = self.original_id[ids].copy()
