@@ -214,7 +214,7 @@ class FanCloudAccessor:
         >>> from fancloud_vtk.data import bunny_path
         >>> bunny = pv.read(bunny_path())
         >>> ent = bunny.fancloud.entropy()
-        >>> ent["fancloud_input"][0], ent.n_points == bunny.n_points
+        >>> str(ent["fancloud_input"][0]), ent.n_points == bunny.n_points
         ('triangle mesh', True)
         >>> ent.plot(scalars="entropy_curv", log_scale=True)  # doctest: +SKIP
         """

@@ -105,7 +105,8 @@ class FanCloudSelectiveRefineFilter(FanCloudAlgorithm):
     >>> src = vtkPointSource()
     >>> src.SetNumberOfPoints(4000)
     >>> src.SetDistributionToShell()
-    >>> sel = FanCloudSelectiveRefineFilter(keep=0.2, region_center=(0, 0, 1), region_radius=0.5)
+    >>> sel = FanCloudSelectiveRefineFilter(keep=0.2, region_center=(0, 0, 0.5),
+    ...                                     region_radius=0.3)
     >>> sel.SetInputConnection(src.GetOutputPort())
     >>> n = run(sel).GetNumberOfPoints()
     >>> 800 < n < 4000
