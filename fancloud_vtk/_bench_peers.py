@@ -234,22 +234,27 @@ def _write_json(path: str, data: dict) -> None:
     os.replace(tmp, path)
 
 
+def _load_method(loader: str, res: dict, result_path: str):
+    """The method's run function, or None after writing why it is missing or failed."""
+    try:
+        return _import_loader(loader)()
+    except ImportError as exc:
+        res.update(status="missing", error=_short(exc))
+    except Exception as exc:
+        res.update(status="failed", error="loading: " + _short(exc),
+                   traceback=traceback.format_exc()[-3000:])
+    _write_json(result_path, res)
+    return None
+
+
 def child_main(argv: list[str]) -> int:
     """``NAME LOADER POINTS.npy OUT_DIR REPEAT WARMUP_N``: run one method, write its results."""
     name, loader, points_path, out_dir, repeat, warmup_n = argv
     repeat, warmup_n = int(repeat), int(warmup_n)
     result_path = os.path.join(out_dir, "result.json")
     res = {"name": name, "status": "running", "times": []}
-    try:
-        run = _import_loader(loader)()
-    except ImportError as exc:
-        res.update(status="missing", error=_short(exc))
-        _write_json(result_path, res)
-        return 0
-    except Exception as exc:
-        res.update(status="failed", error="loading: " + _short(exc),
-                   traceback=traceback.format_exc()[-3000:])
-        _write_json(result_path, res)
+    run = _load_method(loader, res, result_path)
+    if run is None:
         return 0
     points = np.load(points_path)
     try:
@@ -748,16 +753,8 @@ def reduce_child_main(argv: list[str]) -> int:
     targets = [int(t) for t in targets.split(",")]
     result_path = os.path.join(out_dir, "result.json")
     res = {"name": name, "status": "running", "runs": []}
-    try:
-        run = _import_loader(loader)()
-    except ImportError as exc:
-        res.update(status="missing", error=_short(exc))
-        _write_json(result_path, res)
-        return 0
-    except Exception as exc:
-        res.update(status="failed", error="loading: " + _short(exc),
-                   traceback=traceback.format_exc()[-3000:])
-        _write_json(result_path, res)
+    run = _load_method(loader, res, result_path)
+    if run is None:
         return 0
     data = load_reduce_data(data_path)
     if warmup_path != "-":

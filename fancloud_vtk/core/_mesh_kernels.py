@@ -247,6 +247,15 @@ def _tangent(nx, ny, nz):
     return ux, uy, uz, ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
 
 
+@njit(cache=True)
+def _in_plane(points, o, q, ux, uy, uz, vx, vy, vz):
+    """Coordinates of q - o in the tangent plane spanned by (u, v)."""
+    dx = points[q, 0] - points[o, 0]
+    dy = points[q, 1] - points[o, 1]
+    dz = points[q, 2] - points[o, 2]
+    return dx * ux + dy * uy + dz * uz, dx * vx + dy * vy + dz * vz
+
+
 @njit(cache=True, parallel=True)
 def tangent_frames(normals):
     """Per point a unit tangent pair (u, v) with (u, v, n) right-handed: (n, 6)."""
@@ -1067,26 +1076,8 @@ def clip_ears(
                 if dup:
                     continue
                 ux, uy, uz, vx, vy, vz = _tangent(normals[b, 0], normals[b, 1], normals[b, 2])
-                ax = (
-                    (points[a, 0] - points[b, 0]) * ux
-                    + (points[a, 1] - points[b, 1]) * uy
-                    + (points[a, 2] - points[b, 2]) * uz
-                )
-                ay = (
-                    (points[a, 0] - points[b, 0]) * vx
-                    + (points[a, 1] - points[b, 1]) * vy
-                    + (points[a, 2] - points[b, 2]) * vz
-                )
-                cx = (
-                    (points[c, 0] - points[b, 0]) * ux
-                    + (points[c, 1] - points[b, 1]) * uy
-                    + (points[c, 2] - points[b, 2]) * uz
-                )
-                cy = (
-                    (points[c, 0] - points[b, 0]) * vx
-                    + (points[c, 1] - points[b, 1]) * vy
-                    + (points[c, 2] - points[b, 2]) * vz
-                )
+                ax, ay = _in_plane(points, b, a, ux, uy, uz, vx, vy, vz)
+                cx, cy = _in_plane(points, b, c, ux, uy, uz, vx, vy, vz)
                 # convex at b: (b - a) x (c - b) > 0, with b at the origin
                 if (-ax) * cy - (-ay) * cx <= 0.0:
                     continue
@@ -1095,11 +1086,7 @@ def clip_ears(
                     q = poly[k]
                     if q == a or q == b or q == c:
                         continue
-                    dx = points[q, 0] - points[b, 0]
-                    dy = points[q, 1] - points[b, 1]
-                    dz = points[q, 2] - points[b, 2]
-                    qx = dx * ux + dy * uy + dz * uz
-                    qy = dx * vx + dy * vy + dz * vz
+                    qx, qy = _in_plane(points, b, q, ux, uy, uz, vx, vy, vz)
                     # inside or on the counter-clockwise triangle a, b(0), c
                     if (
                         (0.0 - ax) * (qy - ay) - (0.0 - ay) * (qx - ax) >= 0.0
