@@ -515,10 +515,10 @@ class Hierarchy:
                              "this hierarchy (from level() or reduce())")
         m0 = base.n_points
         self._check_level(m0)
-        index = self._index_of(ids)
         n = self.n_points
         expected = np.ones(n, bool)
         expected[self.order[: n - m0]] = False
+        index = self._positions(ids, expected)
         got = np.zeros(n, bool)
         got[index] = True
         if not np.array_equal(expected, got):
@@ -528,6 +528,15 @@ class Hierarchy:
         pts[index] = base.points
         nrm[index] = base.normals
         return pts, nrm, m0
+
+    def _positions(self, ids, active) -> np.ndarray:
+        """Which points of the hierarchy a level's ``original_id`` array names: the level's
+        points in order (inserted points, whose id is -1, are matched by position)."""
+        ids = np.asarray(ids, dtype=np.int64)
+        index = np.flatnonzero(active)
+        if len(index) == len(ids) and np.array_equal(self.original_id[index], ids):
+            return index
+        return self._index_of(ids)
 
     def _index_of(self, ids) -> np.ndarray:
         ids = np.asarray(ids, dtype=np.int64)
@@ -586,7 +595,8 @@ class Hierarchy:
         if not isinstance(fancloud, FanCloud) or fancloud.n_points != self.n_points:
             raise ValueError(f"details need the finest level ({self.n_points} points)")
         ids = fancloud.point_data.get(ORIGINAL_ID)
-        index = np.arange(self.n_points) if ids is None else self._index_of(ids)
+        index = np.arange(self.n_points) if ids is None else \
+            self._positions(ids, np.ones(self.n_points, bool))
         pts = np.empty_like(self.source.points)
         nrm = np.empty_like(self.source.normals)
         pts[index] = fancloud.points
@@ -656,6 +666,34 @@ class Hierarchy:
         out = build_fans(pts[ids], k, normals=nrm[ids], point_data=pdata)
         out.info["reinserted"] = int(inside.sum())
         return out
+
+    # -- refinement -------------------------------------------------------
+    def refine(self, n_points=None, factor=None, **kwargs) -> Hierarchy:
+        """This hierarchy with refined levels above its finest (paper section 7).
+
+        The finest level is refined by :func:`~fancloud_vtk.refine` (same
+        parameters) and the insertions go on top: the new hierarchy's
+        ``level(m)`` reaches from :attr:`n_min` up to the refined count, and
+        its levels up to the old :attr:`n_points` are this one's.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from fancloud_vtk import build_fans, hierarchy
+        >>> rng = np.random.default_rng(0)
+        >>> p = rng.normal(size=(2000, 3))
+        >>> p /= np.linalg.norm(p, axis=1)[:, None]
+        >>> h = hierarchy(build_fans(p), 500).refine(factor=2)
+        >>> h.n_min, h.n_points, h.level(3000).n_points
+        (500, 4000, 3000)
+        """
+        from .refinement import refine
+
+        if "return_hierarchy" in kwargs:
+            raise TypeError("Hierarchy.refine always returns a Hierarchy")
+        _, upper = refine(self.level(self.n_points), n_points, factor, return_hierarchy=True,
+                          **kwargs)
+        return _stacked(upper, self)
 
     # -- saving -----------------------------------------------------------
     def _arrays(self) -> dict[str, np.ndarray]:
@@ -750,4 +788,38 @@ def _region_mask(region, pts, removed, n) -> np.ndarray:
     raise ValueError(
         "region must be a callable on (m, 3) positions, a bool mask over the input points, "
         "box bounds (xmin, xmax, ymin, ymax, zmin, zmax) or a sphere (center, radius)"
+    )
+
+
+def _stacked(upper: Hierarchy, lower: Hierarchy) -> Hierarchy:
+    """One hierarchy from ``upper`` (whose coarsest level is ``lower``'s finest, its extra
+    points appended) and ``lower``: upper's removals first, then lower's."""
+    n, n_low = upper.n_points, lower.n_points
+    m = n - n_low
+
+    def cat(a, b, shift=None):
+        return np.concatenate([a, b if shift is None else b[1:] + shift])
+
+    coarse_off = np.concatenate([lower.coarse_off,
+                                 np.full(m, lower.coarse_off[-1], np.int64)])
+    src = upper.source
+    source = FanCloud(src.points, src.offsets, src.ring, src.normals, src.open, src.rotated,
+                      {**src.point_data, ORIGINAL_ID: upper.original_id})
+    return Hierarchy(
+        source=source,
+        order=cat(upper.order, lower.order),
+        rem_off=cat(upper.rem_off, lower.rem_off, upper.rem_off[-1]),
+        rem_ring=cat(upper.rem_ring, lower.rem_ring.astype(upper.rem_ring.dtype)),
+        rem_open=cat(upper.rem_open, lower.rem_open),
+        detail=cat(upper.detail, lower.detail),
+        log_off=cat(upper.log_off, lower.log_off, upper.log_off[-1]),
+        ent_x=cat(upper.ent_x, lower.ent_x.astype(upper.ent_x.dtype)),
+        ent_open=cat(upper.ent_open, lower.ent_open),
+        ent_off=cat(upper.ent_off, lower.ent_off, upper.ent_off[-1]),
+        ent_ring=cat(upper.ent_ring, lower.ent_ring.astype(upper.ent_ring.dtype)),
+        coarse_off=coarse_off,
+        coarse_ring=lower.coarse_ring,
+        coarse_open=np.concatenate([lower.coarse_open, np.zeros(m, bool)]),
+        weights=lower.weights,
+        method=lower.method,
     )
