@@ -11,6 +11,7 @@ from .core.fans import Cancelled, DuplicatePointsWarning, build_fans
 from .core.mesh import TriangleMesh, fan_cloud_to_mesh
 from .core.model import FanCloud, find_color_array
 from .core.reduction import Hierarchy, hierarchy, reduce
+from .core.refinement import refine
 from .core.validation import FanCloudInputError
 
 __version__ = "0.1.0"
@@ -30,4 +31,5 @@ __all__ = [
     "find_color_array",
     "hierarchy",
     "reduce",
+    "refine",
 ]

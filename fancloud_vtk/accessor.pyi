@@ -3,7 +3,7 @@
 At run time ``FanCloudAccessor.fans`` takes ``**params`` checked against
 ``fancloud_vtk.params.FAN_PARAMS``, ``FanCloudAccessor.mesh`` against
 ``FAN_PARAMS + MESH_PARAMS``, ``entropy`` and ``reduce`` against
-``FAN_PARAMS + ENTROPY_PARAMS`` / ``REDUCE_PARAMS``; this stub spells those
+``FAN_PARAMS + ENTROPY_PARAMS`` / ``REDUCE_PARAMS`` / ``REFINE_PARAMS``; this stub spells those
 keywords out so editors complete and check them. The verb signatures between
 the markers are generated from the tables by ``scripts/gen_docs.py``; do not
 edit them by hand.
@@ -104,6 +104,27 @@ class FanCloudAccessor:
     ) -> pv.PolyData:
         """Reduce to an exact number of points by entropy (paper section 5); a new PolyData."""
     # END GENERATED reduce
+    # BEGIN GENERATED refine (scripts/gen_docs.py from FAN_PARAMS + REFINE_PARAMS)
+    def refine(
+        self,
+        *,
+        k: int = 6,
+        max_angle: float = 90.0,
+        max_replacements: int = 42,
+        rule: Literal["cover", "paper"] = "cover",
+        rotate_sharp_edges: bool = True,
+        orient: bool = True,
+        factor: float = 2.0,
+        n_points: int = 0,
+        weights: tuple[float, float, float, float] = (1.0, 1.0, 0.0, 0.0),
+        color_array: str = "",
+        move: bool = True,
+        exact: bool = False,
+        mesh: bool = False,
+        progress_bar: bool = False,
+    ) -> pv.PolyData:
+        """Refine beyond the input resolution by entropy (paper section 7); a new PolyData."""
+    # END GENERATED refine
     def hierarchy(
         self,
         n_points: int | None = None,

@@ -22,7 +22,14 @@ import sys
 import time
 import warnings
 
-from fancloud_vtk.params import ENTROPY_PARAMS, FAN_PARAMS, MESH_PARAMS, REDUCE_PARAMS, Param
+from fancloud_vtk.params import (
+    ENTROPY_PARAMS,
+    FAN_PARAMS,
+    MESH_PARAMS,
+    REDUCE_PARAMS,
+    REFINE_PARAMS,
+    Param,
+)
 
 
 def _vector(size: int):
@@ -242,8 +249,7 @@ def cmd_entropy(args) -> int:
 
 
 def cmd_reduce(args) -> int:
-    from fancloud_vtk.algorithms.convert import MESH_FORMATS, mesh_to_vtk, write_mesh
-    from fancloud_vtk.core.mesh import fan_cloud_to_mesh
+    from fancloud_vtk.algorithms.convert import MESH_FORMATS
     from fancloud_vtk.core.reduction import reduce
 
     _check_output(args.output, MESH_FORMATS if args.mesh else ".vtp")
@@ -264,18 +270,50 @@ def cmd_reduce(args) -> int:
             ("kept", f"{small.n_points:,} ({100 * small.n_points / fc.n_points:.1f}%)"),
             ("weights", str(tuple(args.weights))), ("method", args.method),
             ("time: read and fans", f"{t1 - t0:.2f} s"), ("time: reduction", f"{t2 - t1:.2f} s")]
-    if args.mesh:
-        from fancloud_vtk.algorithms.reduce import mesh_rings
+    return _write_fan_cloud(small, kind, args, rows)
 
-        mesh = fan_cloud_to_mesh(small, rings=mesh_rings(kind))
+
+def _write_fan_cloud(fc, kind: str, args, rows: list) -> int:
+    """Save the result (its mesh with ``--mesh``) and print the summary rows."""
+    if args.mesh:
+        from fancloud_vtk.algorithms.convert import mesh_to_vtk, write_mesh
+        from fancloud_vtk.algorithms.reduce import mesh_rings
+        from fancloud_vtk.core.mesh import fan_cloud_to_mesh
+
+        mesh = fan_cloud_to_mesh(fc, rings=mesh_rings(kind))
         write_mesh(mesh_to_vtk(mesh), args.output)
         rows += [("triangles", f"{mesh.n_triangles:,}"), ("holes", f"{mesh.stats['holes']}")]
     else:
-        small.save(args.output)
+        fc.save(args.output)
     rows.append(("written", args.output))
     if not args.quiet:
         _print_rows(rows)
     return 0
+
+
+def cmd_refine(args) -> int:
+    from fancloud_vtk.algorithms.convert import MESH_FORMATS
+    from fancloud_vtk.core.refinement import refine
+
+    _check_output(args.output, MESH_FORMATS if args.mesh else ".vtp")
+    if args.n_points is None and args.factor is None:
+        raise ValueError("give --factor F (> 1) or --n N (a count)")
+    t0 = time.perf_counter()
+    fc, kind = _load_any(args.input, _params(args, FAN_PARAMS), args.quiet)
+    t1 = time.perf_counter()
+    progress = _Progress("refine", args.quiet)
+    try:
+        fine = refine(fc, n_points=args.n_points, factor=args.factor, weights=args.weights,
+                      colors=args.color_array or None, move=args.move, exact=args.exact,
+                      progress=progress)
+    finally:
+        progress.close()
+    t2 = time.perf_counter()
+    rows = [("input", f"{kind}, {fc.n_points:,} points"),
+            ("refined", f"{fine.n_points:,} (x{fine.n_points / fc.n_points:.2f})"),
+            ("weights", str(tuple(args.weights))),
+            ("time: read and fans", f"{t1 - t0:.2f} s"), ("time: refinement", f"{t2 - t1:.2f} s")]
+    return _write_fan_cloud(fine, kind, args, rows)
 
 
 def cmd_demo(args) -> int:
@@ -330,6 +368,20 @@ def make_parser() -> argparse.ArgumentParser:
                                       if x.name not in ("keep", "n_points")))
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_reduce)
+
+    p = sub.add_parser("refine", help="refine beyond the input resolution by entropy")
+    p.add_argument("input", help="a fan cloud .vtp, a mesh file (one-rings) or a point cloud")
+    p.add_argument("-o", "--output", required=True,
+                   help="output fan cloud (.vtp), or with --mesh a mesh (.ply .obj .vtp .stl .vtk)")
+    amount = p.add_mutually_exclusive_group(required=True)
+    amount.add_argument("--factor", type=float, default=None,
+                        help="the result has round(F * n) points (F > 1)")
+    amount.add_argument("--n", "--n-points", dest="n_points", type=int, default=None,
+                        help="number of points of the result")
+    _add_params(p, FAN_PARAMS + tuple(x for x in REFINE_PARAMS
+                                      if x.name not in ("factor", "n_points")))
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    p.set_defaults(func=cmd_refine)
 
     p = sub.add_parser("demo", help="fan cloud and mesh of the bunny: built, saved, rendered")
     p.add_argument("--out", default="fancloud_demo", help="output folder (default: %(default)s)")

@@ -236,3 +236,30 @@ SELECTIVE_PARAMS: tuple[Param, ...] = (
     Param("region_bounds", "vector", (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
           "box region (xmin, xmax, ymin, ymax, zmin, zmax)", range=(-1e300, 1e300), size=6),
 )
+
+#: Parameters of the refinement (paper section 7): refine, FanCloudRefineFilter,
+#: dataset.fancloud.refine(), ``fancloud refine`` (with FAN_PARAMS for point input).
+REFINE_PARAMS: tuple[Param, ...] = (
+    Param("factor", "float", 2.0,
+          "the result has round(factor * n) points (used when n_points is 0); > 1",
+          range=(1.0, 1e6)),
+    Param("n_points", "int", 0, "number of points of the result (0: use factor); at least the "
+          "input's", range=(0, 2**62)),
+    Param(
+        "weights", "vector", (1.0, 1.0, 0.0, 0.0),
+        "entropy weights (a1, a2, a3, a4) that decide where points go and how the parents are "
+        "weighted; the default leaves out the curvature change, which would pile points up "
+        "where the normals are noisy",
+        range=(0.0, 1e12), size=4,
+    ),
+    _COLOR_ARRAY,
+    Param("move", "bool", True,
+          "move each new point along its normal so that its mean curvature is its parents' "
+          "entropy-weighted one (False: leave it on the triangle of its parents)"),
+    Param("exact", "bool", False,
+          "insert strictly one point at a time, highest entropy first, from a heap (the "
+          "paper's order; slower) instead of in rounds of non-overlapping insertions"),
+    Param("mesh", "bool", False,
+          "output the triangle mesh of the refined fan cloud (fan_cloud_to_mesh) instead of "
+          "the fan cloud"),
+)

@@ -36,6 +36,7 @@ from fancloud_vtk.params import (  # noqa: E402
     FAN_PARAMS,
     MESH_PARAMS,
     REDUCE_PARAMS,
+    REFINE_PARAMS,
     SELECTIVE_PARAMS,
     Param,
     markdown_table,
@@ -62,6 +63,10 @@ VERBS = {
         FAN_PARAMS + REDUCE_PARAMS,
         "Reduce to an exact number of points by entropy (paper section 5); a new PolyData.",
     ),
+    "refine": (
+        FAN_PARAMS + REFINE_PARAMS,
+        "Refine beyond the input resolution by entropy (paper section 7); a new PolyData.",
+    ),
 }
 
 #: Tables rendered into docs/api.md between ``BEGIN <NAME>`` / ``END <NAME>`` markers.
@@ -71,6 +76,7 @@ TABLES = {
     "ENTROPY_PARAMS": ENTROPY_PARAMS,
     "REDUCE_PARAMS": REDUCE_PARAMS,
     "SELECTIVE_PARAMS": SELECTIVE_PARAMS,
+    "REFINE_PARAMS": REFINE_PARAMS,
 }
 
 

@@ -10,6 +10,7 @@ from .entropy import FanCloudEntropyFilter
 from .fans import FanCloudFilter
 from .mesh import FanCloudMeshFilter
 from .reduce import FanCloudReduceFilter, FanCloudSelectiveRefineFilter
+from .refine import FanCloudRefineFilter
 
 __all__ = [
     "FanCloudAlgorithm",
@@ -17,6 +18,7 @@ __all__ = [
     "FanCloudFilter",
     "FanCloudMeshFilter",
     "FanCloudReduceFilter",
+    "FanCloudRefineFilter",
     "FanCloudSelectiveRefineFilter",
     "fancloud_from_vtk",
     "fancloud_to_vtk",

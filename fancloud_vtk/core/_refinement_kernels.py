@@ -39,7 +39,10 @@ from ._reduction_kernels import (
 #: at most this many mean-curvature iterations (the cotangent weights are re-read each time)
 MOVE_ITERATIONS = 3
 #: the normal move is at most this fraction of r0's mean distance to its ring
-MAX_MOVE = 0.5
+MAX_MOVE = 1.0
+#: parents' normals further apart than this angle (degrees) mean a sharp edge between them
+SHARP_ANGLE = 30.0
+SHARP_COS = np.cos(np.radians(SHARP_ANGLE))
 
 
 # -- the mean curvature normal (Meyer et al. 2003) ------------------------------------------
@@ -95,6 +98,39 @@ def _curvature(points, x, nb, k, closed, nx, ny, nz, c):
 
 
 @njit(cache=True)
+def _envelope(points, normals, parents, ox, oy, oz, nx, ny, nz):
+    """Where the line r0 + t n meets the parents' tangent planes: (t_pos, t_neg, sharp).
+
+    t_pos: the nearest crossing ahead (inf if none), t_neg: the nearest behind
+    (-inf if none); sharp: two parents' normals are more than ``SHARP_ANGLE``
+    apart (a sharp edge or corner between them).
+    """
+    t_pos = INF
+    t_neg = -INF
+    for j in range(3):
+        x = parents[j]
+        den = nx * normals[x, 0] + ny * normals[x, 1] + nz * normals[x, 2]
+        if abs(den) < 0.1:
+            continue
+        t = -((ox - points[x, 0]) * normals[x, 0] + (oy - points[x, 1]) * normals[x, 1]
+              + (oz - points[x, 2]) * normals[x, 2]) / den
+        if t >= 0.0:
+            t_pos = min(t_pos, t)
+        else:
+            t_neg = max(t_neg, t)
+    sharp = False
+    for j in range(3):
+        a = parents[j]
+        for k in range(j + 1, 3):
+            b = parents[k]
+            c = abs(normals[a, 0] * normals[b, 0] + normals[a, 1] * normals[b, 1]
+                    + normals[a, 2] * normals[b, 2])
+            if c < SHARP_COS:
+                sharp = True
+    return t_pos, t_neg, sharp
+
+
+@njit(cache=True)
 def _move(points, normals, R, rlen, ropen, r, ring, h, parents, wts, c):
     """Move r along its normal so that its mean curvature is the parents' weighted one.
 
@@ -102,17 +138,19 @@ def _move(points, normals, R, rlen, ropen, r, ring, h, parents, wts, c):
     mean curvature normal on its own fan, read along r's normal n (signed, so
     saddles keep their sign). Then r = r0 + t n with the t that solves
     ``K(r) . n = mu`` for the cotangent weights of r's fan, which barely
-    change with t (re-read up to ``MOVE_ITERATIONS`` times). |t| is at most
-    ``MAX_MOVE`` times r0's mean distance to its ring. Returns t.
+    change with t (re-read up to ``MOVE_ITERATIONS`` times).
+
+    The parents' tangent planes bound the move: r does not cross the nearest
+    of them on its side (a flat face next to an edge stays flat, whatever
+    the parents' curvature), and |t| is at most ``MAX_MOVE`` times r0's mean
+    distance to its ring. Where the parents' normals are more than
+    ``SHARP_ANGLE`` apart, r0 lies on a chord across a sharp edge or corner,
+    which no mean curvature describes and which a point there would cut off:
+    returns inf (no insertion at p). Else returns t.
     """
     nx = normals[r, 0]
     ny = normals[r, 1]
     nz = normals[r, 2]
-    mu = 0.0
-    for j in range(3):
-        x = parents[j]
-        kn, _ = _curvature(points, x, R[x], rlen[x], not ropen[x], nx, ny, nz, c)
-        mu += wts[j] * kn
     ox = points[r, 0]
     oy = points[r, 1]
     oz = points[r, 2]
@@ -124,13 +162,23 @@ def _move(points, normals, R, rlen, ropen, r, ring, h, parents, wts, c):
         dz = points[q, 2] - oz
         spacing += np.sqrt(dx * dx + dy * dy + dz * dz)
     limit = MAX_MOVE * spacing / h
+    t_pos, t_neg, sharp = _envelope(points, normals, parents, ox, oy, oz, nx, ny, nz)
+    if sharp:
+        return INF
+    mu = 0.0
+    for j in range(3):
+        x = parents[j]
+        kn, _ = _curvature(points, x, R[x], rlen[x], not ropen[x], nx, ny, nz, c)
+        mu += wts[j] * kn
+    lo = max(t_neg, -limit)
+    hi = min(t_pos, limit)
     t = 0.0
     for _ in range(MOVE_ITERATIONS):
         kn, a0 = _curvature(points, r, ring, h, True, nx, ny, nz, c)
         if not a0 > 0.0:
             break
         step = (mu - kn) / a0
-        t_new = min(max(t + step, -limit), limit)
+        t_new = min(max(t + step, lo), hi)
         if t_new == t:
             break
         t = t_new
@@ -299,7 +347,9 @@ def _plan(points, normals, colors, R, rlen, ropen, M, p, slot, move, gap, cand, 
     if not inside:
         return 0, 0, tag  # r is not in p's Delaunay neighbourhood: p's fan is no triangle fan
     if move:
-        _move(points, normals, R, rlen, ropen, slot, ring_r, h, par, wts, c)
+        t = _move(points, normals, R, rlen, ropen, slot, ring_r, h, par, wts, c)
+        if t == INF:
+            return 0, 0, tag
     for i in range(h):
         q = ring_r[i]
         dx = points[q, 0] - points[slot, 0]

@@ -1,0 +1,267 @@
+"""Refinement beyond the input resolution (paper section 7)."""
+
+import numpy as np
+import pytest
+from shapes import cube_surface, distance_to_cube, flat_patch, sphere
+
+from fancloud_vtk import (
+    FanCloud,
+    FanCloudInputError,
+    Hierarchy,
+    build_fans,
+    fan_cloud_of_mesh,
+    fan_cloud_to_mesh,
+    hierarchy,
+    reduce,
+    refine,
+)
+from fancloud_vtk.core.reduction import laplacian_smooth
+
+
+@pytest.fixture(scope="module")
+def sphere_fans():
+    return build_fans(sphere(2000, seed=5))
+
+
+@pytest.fixture(scope="module")
+def plane_fans():
+    pts, _ = flat_patch(3000, 200, seed=2)
+    x = pts[:, 0]
+    colours = np.c_[x, 1.0 - x, 0.5 * np.ones_like(x)]  # a gradient along x
+    label = (pts[:, 1] > 0.5).astype(np.int32)
+    return build_fans(pts, point_data={"RGB": colours, "label": label, "height": 2.0 * x})
+
+
+def _radial(fc, n0):
+    return np.linalg.norm(fc.points[n0:], axis=1) - 1.0
+
+
+def test_sphere_times_four_new_points_on_the_sphere(sphere_fans):
+    """The normal move really works: the RMS radial error of the moved points is at most a
+    quarter of the unmoved initial positions', and never more than 1% of the radius."""
+    n0 = sphere_fans.n_points
+    moved = refine(sphere_fans, factor=4)
+    still = refine(sphere_fans, factor=4, move=False)
+    assert moved.n_points == still.n_points == 4 * n0
+    e_moved = _radial(moved, n0)
+    e_still = _radial(still, n0)
+    rms_moved = np.sqrt(np.mean(e_moved**2))
+    rms_still = np.sqrt(np.mean(e_still**2))
+    assert rms_moved <= 0.25 * rms_still, (rms_moved, rms_still)
+    assert np.abs(e_moved).max() <= 0.01
+    # the unmoved points are on the chords: inside the sphere
+    assert (e_still < 1e-12).all()
+    # the input's points are kept as they are, first
+    np.testing.assert_array_equal(moved.points[:n0], sphere_fans.points)
+
+
+def test_sphere_refinement_spreads_points_evenly(sphere_fans):
+    from scipy.spatial import cKDTree
+
+    fine = refine(sphere_fans, factor=4)
+    d_in = cKDTree(sphere_fans.points).query(sphere_fans.points, 2)[0][:, 1]
+    d = cKDTree(fine.points).query(fine.points, 2)[0][:, 1]
+    # the spacing gets more even than the random input's, and no new point piles up on another
+    assert d.std() / d.mean() < 0.5 * d_in.std() / d_in.mean()
+    assert d[2000:].min() > 0.2 * d.mean()
+
+
+def test_plane_stays_a_plane_and_gradients_stay_gradients(plane_fans):
+    fc = plane_fans
+    n0 = fc.n_points
+    fine = refine(fc, factor=2)
+    new = fine.points[n0:]
+    assert np.abs(new[:, 2]).max() <= 1e-12
+    # inside the square
+    assert (new[:, :2] >= -1e-12).all() and (new[:, :2] <= 1 + 1e-12).all()
+    rgb = fine.point_data["RGB"][n0:]
+    # the weighted combination of a linear function is the function at the combined point
+    np.testing.assert_allclose(rgb[:, 0], new[:, 0], atol=1e-9)
+    np.testing.assert_allclose(rgb[:, 1], 1.0 - new[:, 0], atol=1e-9)
+    np.testing.assert_allclose(fine.point_data["height"][n0:], 2.0 * new[:, 0], atol=1e-9)
+    # labels are taken from a parent, not blended
+    assert fine.point_data["label"].dtype == np.int32
+    assert set(np.unique(fine.point_data["label"][n0:])) <= {0, 1}
+    assert (fine.point_data["original_id"][n0:] == -1).all()
+    np.testing.assert_array_equal(fine.point_data["original_id"][:n0], np.arange(n0))
+
+
+def test_uint8_colours_between_their_parents():
+    pts, _ = flat_patch(2000, 120, seed=4)
+    rgb = np.zeros((len(pts), 3), np.uint8)
+    rgb[:, 0] = np.round(255 * pts[:, 0])
+    fc = build_fans(pts, point_data={"RGB": rgb})
+    fine = refine(fc, factor=1.5)
+    n0 = fc.n_points
+    out = fine.point_data["RGB"]
+    assert out.dtype == np.uint8
+    # a gradient stays a gradient: each new colour is the gradient at its place (rounded)
+    assert np.abs(out[n0:, 0].astype(float) - 255 * fine.points[n0:, 0]).max() <= 1.0
+    assert (out[n0:, 1:] == 0).all()
+
+
+def test_cube_new_points_stay_on_the_faces():
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    fc = build_fans(np.vstack([cube_surface(6000, seed=1), corners]))
+    fine = refine(fc, factor=2)
+    d = distance_to_cube(fine.points[fc.n_points:])
+    assert d.max() <= 0.01 * 2.0  # 1% of the edge (2)
+
+
+def _volume(mesh):
+    v, t = mesh.points, mesh.triangles
+    return np.einsum("ij,ij->i", v[t[:, 0]], np.cross(v[t[:, 1]], v[t[:, 2]])).sum() / 6.0
+
+
+def test_ten_reduction_refinement_cycles_keep_the_bunny(bunny):
+    """Figure 12: 100% -> 50% -> 100% ten times, without stored detail."""
+    from fancloud_vtk._bench_peers import MeshDistance, surface_distance
+
+    p, f, _ = bunny
+    used = np.unique(f)
+    assert len(used) == len(p)
+    fc = fan_cloud_of_mesh(p, f)
+    n = fc.n_points
+    v0 = _volume(fan_cloud_to_mesh(fc))
+    for _ in range(10):
+        fc = refine(reduce(fc, keep=0.5), n_points=n)
+        assert fc.n_points == n
+    mesh = fan_cloud_to_mesh(fc)
+    diag = np.linalg.norm(p.max(0) - p.min(0))
+    to_original = MeshDistance(p, f)
+    to_result = MeshDistance(mesh.points, mesh.triangles)
+    back = surface_distance(mesh.points, mesh.triangles, to_original, 2 * n, seed=1)
+    fwd = max(to_result(p).max(), surface_distance(p, f, to_result, 2 * n, seed=2)["max"])
+    assert max(back["max"], fwd) <= 0.01 * diag
+    assert abs(_volume(mesh) / v0 - 1.0) <= 0.02
+
+
+def test_deterministic_and_exact_mode(sphere_fans):
+    a = refine(sphere_fans, factor=2)
+    b = refine(sphere_fans, factor=2)
+    for x, y in zip((a.points, a.offsets, a.ring, a.normals), (b.points, b.offsets, b.ring,
+                                                               b.normals), strict=True):
+        np.testing.assert_array_equal(x, y)
+    e = refine(sphere_fans, factor=2, exact=True)
+    assert e.n_points == 4000
+    assert np.abs(_radial(e, 2000)).max() <= 0.01
+
+
+def test_triangle_mesh_input_and_count(bunny):
+    from fancloud_vtk import TriangleMesh
+
+    p, f, vn = bunny
+    mesh = TriangleMesh(p, f, vn, {})
+    fine = refine(mesh, n_points=len(p) + 1000)
+    assert fine.n_points == len(p) + 1000
+    same = refine(mesh, n_points=len(p))
+    np.testing.assert_array_equal(same.points, p)
+
+
+def test_input_not_modified(plane_fans):
+    before = plane_fans.copy()
+    refine(plane_fans, factor=2)
+    for key in ("points", "offsets", "ring", "normals", "open"):
+        np.testing.assert_array_equal(getattr(plane_fans, key), getattr(before, key))
+    for key, v in before.point_data.items():
+        np.testing.assert_array_equal(plane_fans.point_data[key], v)
+
+
+# -- levels of detail ---------------------------------------------------------------------
+
+
+def test_refined_points_enter_the_hierarchy(sphere_fans):
+    fine, h = refine(sphere_fans, factor=2, return_hierarchy=True)
+    assert isinstance(h, Hierarchy)
+    assert (h.n_min, h.n_points) == (2000, 4000)
+    base = h.level(2000)
+    for key in ("points", "offsets", "ring", "normals", "open"):
+        np.testing.assert_array_equal(getattr(base, key), getattr(sphere_fans, key))
+    top = h.level(4000)
+    for key in ("points", "offsets", "ring", "open"):
+        np.testing.assert_array_equal(getattr(top, key), getattr(fine, key))
+    mid = h.level(3000)
+    assert mid.n_points == 3000
+    assert (mid.point_data["original_id"] == -1).sum() == 1000
+
+
+def test_hierarchy_refine_goes_above_the_input(sphere_fans):
+    h = hierarchy(sphere_fans, 500)
+    up = h.refine(factor=2)
+    assert (up.n_min, up.n_points) == (500, 4000)
+    for m in (500, 1200, 2000):
+        a, b = h.level(m), up.level(m)
+        np.testing.assert_array_equal(a.points, b.points)
+        np.testing.assert_array_equal(a.ring, b.ring)
+        np.testing.assert_array_equal(a.point_data["original_id"], b.point_data["original_id"])
+    top = up.level(4000)
+    assert (top.point_data["original_id"] == -1).sum() == 2000
+    # an edited coarse level refined all the way up keeps the local-frame detail
+    smooth = laplacian_smooth(up.level(500), 3)
+    edited = up.level(4000, base=smooth)
+    assert edited.n_points == 4000
+    d_ref = up.details(up.level(4000))
+    d_edit = up.details(edited)
+    np.testing.assert_allclose(d_edit, d_ref, atol=1e-9)
+    # an unedited level as base gives the original positions back
+    again = up.level(4000, base=up.level(3000))
+    np.testing.assert_allclose(again.points, top.points, atol=1e-12)
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".vtp"])
+def test_refined_hierarchy_saves_and_loads(sphere_fans, tmp_path, suffix):
+    h = hierarchy(sphere_fans, 1000).refine(factor=1.5)
+    path = tmp_path / f"h{suffix}"
+    h.save(path)
+    back = Hierarchy.load(path)
+    for m in (1000, 2500, 3000):
+        a, b = h.level(m), back.level(m)
+        np.testing.assert_array_equal(a.points, b.points)
+        np.testing.assert_array_equal(a.ring, b.ring)
+        np.testing.assert_array_equal(a.point_data["original_id"], b.point_data["original_id"])
+
+
+# -- bad input ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("factor", [1, 1.0, 0.5, -2, 0, float("nan"), float("inf"), True, "2"])
+def test_bad_factor(sphere_fans, factor):
+    with pytest.raises(ValueError, match="factor"):
+        refine(sphere_fans, factor=factor)
+
+
+@pytest.mark.parametrize("n_points", [1999, 10, -5, 2500.0, None])
+def test_bad_n_points(sphere_fans, n_points):
+    with pytest.raises(ValueError, match="n_points"):
+        refine(sphere_fans, n_points=n_points)
+
+
+def test_both_counts(sphere_fans):
+    with pytest.raises(ValueError, match="exactly one"):
+        refine(sphere_fans, n_points=3000, factor=2)
+
+
+def test_no_closed_fans(sphere_fans):
+    fc = sphere_fans
+    open_all = FanCloud(fc.points, fc.offsets, fc.ring, fc.normals, np.ones(fc.n_points, bool),
+                        fc.rotated)
+    with pytest.raises(FanCloudInputError, match="no closed fans"):
+        refine(open_all, factor=2)
+
+
+@pytest.mark.parametrize("weights", [(1, 1, 0), (1, -1, 0, 0), (0, 0, 0, 0), (1, np.nan, 0, 0)])
+def test_bad_weights(sphere_fans, weights):
+    with pytest.raises(ValueError, match="weights"):
+        refine(sphere_fans, factor=2, weights=weights)
+
+
+def test_bad_colours(sphere_fans, plane_fans):
+    with pytest.raises(ValueError, match="rows"):
+        refine(plane_fans, factor=2, colors=np.zeros((5, 3)))
+    with pytest.raises(ValueError, match="colour weight"):
+        refine(sphere_fans, factor=2, weights=(1, 1, 0, 1))
+
+
+def test_not_a_fan_cloud():
+    with pytest.raises(TypeError, match="FanCloud"):
+        refine(np.zeros((10, 3)), factor=2)
