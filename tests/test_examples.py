@@ -10,10 +10,12 @@ MODULES = [
     "fancloud_vtk.core.mesh",
     "fancloud_vtk.core.entropy",
     "fancloud_vtk.core.reduction",
+    "fancloud_vtk.core.refinement",
     "fancloud_vtk.algorithms.fans",
     "fancloud_vtk.algorithms.mesh",
     "fancloud_vtk.algorithms.entropy",
     "fancloud_vtk.algorithms.reduce",
+    "fancloud_vtk.algorithms.refine",
     "fancloud_vtk.accessor",
 ]
 
@@ -23,5 +25,5 @@ def test_docstring_examples(name):
     module = importlib.import_module(name)
     result = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE, verbose=False)
     assert result.failed == 0, f"{result.failed} docstring example(s) of {name} failed"
-    if name.endswith(("reduction", "entropy", "reduce")):
+    if name.endswith(("reduction", "entropy", "reduce", "refinement", "refine")):
         assert result.attempted > 0, f"{name} has no runnable example"

@@ -41,7 +41,7 @@ MOVE_ITERATIONS = 3
 #: the normal move is at most this fraction of r0's mean distance to its ring
 MAX_MOVE = 1.0
 #: parents' normals further apart than this angle (degrees) mean a sharp edge between them
-SHARP_ANGLE = 30.0
+SHARP_ANGLE = 22.0
 SHARP_COS = np.cos(np.radians(SHARP_ANGLE))
 
 
@@ -560,29 +560,32 @@ def _region(R, rlen, M, p, buf):
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def round_accept(cands, R, rlen, M, mark, tag, limit):
     """Highest entropy first, the candidates whose regions meet no accepted one's
-    (at most ``limit``)."""
+    (at most ``limit``). The regions are gathered in parallel, then chosen in order."""
     width = R.shape[1]
-    buf = np.empty(3 * width + 3, np.int64)
-    out = np.empty(cands.shape[0], np.int64)
+    n_c = cands.shape[0]
+    buf = np.empty((n_c, 3 * width + 3), np.int64)
+    size = np.empty(n_c, np.int64)
+    for i in prange(n_c):
+        size[i] = _region(R, rlen, M, cands[i], buf[i])
+    out = np.empty(n_c, np.int64)
     m = 0
-    for i in range(cands.shape[0]):
+    for i in range(n_c):
         if m == limit:
             break
-        p = cands[i]
-        k = _region(R, rlen, M, p, buf)
+        k = size[i]
         clash = False
         for a in range(k):
-            if mark[buf[a]] == tag:
+            if mark[buf[i, a]] == tag:
                 clash = True
                 break
         if clash:
             continue
         for a in range(k):
-            mark[buf[a]] = tag
-        out[m] = p
+            mark[buf[i, a]] = tag
+        out[m] = cands[i]
         m += 1
     return out[:m]
 
@@ -680,35 +683,45 @@ def update_entropy(points, normals, colors, R, rlen, dist, curv, cc, col, M, w, 
             M[x] = w[0] * dist[x] + w[1] * curv[x] + w[3] * col[x]
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def round_candidates(M, rlen, ropen, blocked, n_cur, want):
-    """The ``want`` eligible points of highest (M, then smaller index), in that order."""
-    ids = np.empty(n_cur, np.int64)
+    """About ``want`` eligible points of highest entropy, highest first (ties: smaller index).
+
+    The threshold is the entropy quantile of a fixed sample of the points
+    (every s-th), so the count is near ``want``, not exact; the choice is
+    deterministic. All eligible points when there are at most ``2 want``.
+    """
     vals = np.empty(n_cur)
-    m = 0
-    for x in range(n_cur):
-        if not blocked[x] and _eligible(rlen, ropen, x):
-            ids[m] = x
-            vals[m] = -M[x]
-            m += 1
-    if m > want:
-        thr = np.partition(vals[:m].copy(), want - 1)[want - 1]
-        below = 0
-        for i in range(m):
-            if vals[i] < thr:
-                below += 1
-        room = want - below
-        mm = 0
-        for i in range(m):
-            if vals[i] < thr or (vals[i] == thr and room > 0):
-                if vals[i] == thr:
-                    room -= 1
-                ids[mm] = ids[i]
-                vals[mm] = vals[i]
-                mm += 1
-        m = mm
-    order = np.argsort(vals[:m], kind="mergesort")
-    return ids[:m][order]
+    for x in prange(n_cur):
+        vals[x] = -M[x] if (not blocked[x] and _eligible(rlen, ropen, x)) else INF
+    thr = INF
+    if n_cur > 2 * want:
+        stride = max(1, n_cur // 8192)
+        sample = vals[::stride].copy()
+        finite = sample[sample < INF]
+        if finite.shape[0] > 0:
+            # each sampled point stands for ``stride`` points
+            q = min(finite.shape[0] - 1, want // stride)
+            thr = np.partition(finite, q)[q]
+    n_chunks = 64
+    counts = np.zeros(n_chunks + 1, np.int64)
+    for ch in prange(n_chunks):
+        c = 0
+        for x in range((n_cur * ch) // n_chunks, (n_cur * (ch + 1)) // n_chunks):
+            if vals[x] <= thr and vals[x] < INF:
+                c += 1
+        counts[ch + 1] = c
+    for ch in range(n_chunks):
+        counts[ch + 1] += counts[ch]
+    ids = np.empty(counts[n_chunks], np.int64)
+    for ch in prange(n_chunks):
+        at = counts[ch]
+        for x in range((n_cur * ch) // n_chunks, (n_cur * (ch + 1)) // n_chunks):
+            if vals[x] <= thr and vals[x] < INF:
+                ids[at] = x
+                at += 1
+    order = np.argsort(vals[ids], kind="mergesort")
+    return ids[order]
 
 
 # -- levels of detail -------------------------------------------------------------------------
