@@ -27,6 +27,14 @@
     (:mod:`fancloud_vtk.bench_reduce`). Writes ``reduce.md`` (also printed),
     ``reduce.json``, ``reduce_curves.png`` and ``reduce_bunny.png``.
 
+``fancloud bench refine [--part speed cycles] [--n 100000] [--cycles 10] [--quick]``
+    Refinement (:mod:`fancloud_vtk.bench_refine`): ``refine`` n -> 2n points
+    against ``build_fans`` of 2n points in the same process, and the paper's
+    Figure 12 (the bunny reduced to half and refined back, ten times:
+    Hausdorff distance and volume per cycle). Writes ``refine.md`` (also
+    printed), ``refine.json``, ``refine_cycles.png`` and
+    ``refine_cycles_error.png``.
+
 Everything in the tables is measured in the run; only the targets (the
 issue's figures) are constants. Measurements that need a fresh process
 (first call, memory, thread counts, the peers) run in subprocesses of the
@@ -1219,6 +1227,10 @@ def make_parser() -> argparse.ArgumentParser:
     from fancloud_vtk.bench_reduce import add_parser as add_reduce_parser
 
     add_reduce_parser(sub)
+
+    from fancloud_vtk.bench_refine import add_parser as add_refine_parser
+
+    add_refine_parser(sub)
     return parser
 
 
