@@ -74,15 +74,21 @@ class FanCloudReduceFilter(FanCloudAlgorithm):
                                    lambda f, m: self._progress(0.3 * f, m))
         small = reduce(fc, **_amount(values), **_reduce_values(values),
                        progress=lambda f, m: self._progress(0.3 + 0.6 * f, m))
-        if values["mesh"]:
-            if self._progress(0.9, "mesh"):
-                raise Cancelled("meshing was cancelled")
-            out = mesh_to_vtk(fan_cloud_to_mesh(small, rings=mesh_rings(kind)))
-        else:
-            out = fancloud_to_vtk(small)
-        add_string_field(out, INPUT_KIND, kind)
-        self._progress(1.0, "done")
-        return out
+        return fan_cloud_output(self, small, kind, values["mesh"])
+
+
+def fan_cloud_output(alg: FanCloudAlgorithm, fc, kind: str, mesh: bool):
+    """The filter's output: the fan cloud, or with ``mesh`` its triangle mesh, saying which
+    kind of input it came from (``fancloud_input``)."""
+    if mesh:
+        if alg._progress(0.9, "mesh"):
+            raise Cancelled("meshing was cancelled")
+        out = mesh_to_vtk(fan_cloud_to_mesh(fc, rings=mesh_rings(kind)))
+    else:
+        out = fancloud_to_vtk(fc)
+    add_string_field(out, INPUT_KIND, kind)
+    alg._progress(1.0, "done")
+    return out
 
 
 @with_parameters(FAN_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS)

@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-from fancloud_vtk.core.fans import Cancelled
-from fancloud_vtk.core.mesh import fan_cloud_to_mesh
 from fancloud_vtk.core.refinement import refine
 from fancloud_vtk.params import FAN_PARAMS, REFINE_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
-from .convert import INPUT_KIND, add_string_field, fancloud_to_vtk, input_fan_cloud, mesh_to_vtk
+from .convert import input_fan_cloud
 from .entropy import fan_values
-from .reduce import mesh_rings
+from .reduce import fan_cloud_output
 
 
 def refine_arguments(values: dict) -> dict:
@@ -57,12 +55,4 @@ class FanCloudRefineFilter(FanCloudAlgorithm):
                                    lambda f, m: self._progress(0.3 * f, m))
         fine = refine(fc, **refine_arguments(values),
                       progress=lambda f, m: self._progress(0.3 + 0.6 * f, m))
-        if values["mesh"]:
-            if self._progress(0.9, "mesh"):
-                raise Cancelled("meshing was cancelled")
-            out = mesh_to_vtk(fan_cloud_to_mesh(fine, rings=mesh_rings(kind)))
-        else:
-            out = fancloud_to_vtk(fine)
-        add_string_field(out, INPUT_KIND, kind)
-        self._progress(1.0, "done")
-        return out
+        return fan_cloud_output(self, fine, kind, values["mesh"])

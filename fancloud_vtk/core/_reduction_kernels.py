@@ -207,9 +207,20 @@ def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, st
             stamp[s] = tag
             cand[m] = s
             m += 1
+    return delaunay_fan(points, normals, ropen[x], x, cand, m, xs, ys, order, hull, R.shape[1],
+                        out)
+
+
+@njit(cache=True)
+def delaunay_fan(points, normals, is_open, x, cand, m, xs, ys, order, hull, width, out):
+    """x's local Delaunay ring in its tangent plane among ``cand[:m]``, written to ``out``.
+
+    A closed fan stays closed if its candidates surround x, else (or if it
+    was open) it is the open Delaunay fan. Returns (size, open); size -1 if
+    no fan can be formed.
+    """
     mm = inversions(points, normals, x, cand, m, xs, ys)
-    width = R.shape[1]
-    if not ropen[x]:
+    if not is_open:
         h = closed_ring(xs, ys, mm, cand, order, hull, width, out)
         if h > 0:
             return h, False

@@ -26,13 +26,14 @@ import numpy as np
 from numba import njit, prange
 
 from ._entropy_kernels import point_cc, point_terms
-from ._mesh_kernels import closed_ring, inversions, open_ring
+from ._mesh_kernels import closed_ring, inversions
 from ._reduction_kernels import (
     INF,
     _grow,
     _heap_update,
     _sift_down,
     _to_frame,
+    delaunay_fan,
     local_frame,
 )
 
@@ -227,15 +228,8 @@ def _reform_with(points, normals, R, rlen, ropen, x, r, cand, xs, ys, ordr, hull
         m += 1
     cand[m] = r
     m += 1
-    mm = inversions(points, normals, x, cand, m, xs, ys)
-    width = R.shape[1]
-    if not ropen[x]:
-        h = closed_ring(xs, ys, mm, cand, ordr, hull, width, out)
-        if h > 0:
-            return h, False
-    if mm < 2:
-        return -1, True
-    return open_ring(xs, ys, mm, cand, ordr, hull, width, out), True
+    return delaunay_fan(points, normals, ropen[x], x, cand, m, xs, ys, ordr, hull, R.shape[1],
+                        out)
 
 
 @njit(cache=True)
