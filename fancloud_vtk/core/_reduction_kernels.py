@@ -564,36 +564,52 @@ def measure_detail(points, normals, order, rem_off, rem_ring):
 # order, the entropies of the re-formed fans recomputed in parallel.
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
+def lowest_keys(vals, want):
+    """About ``want`` indices of the lowest finite ``vals``, lowest first (ties: smaller index).
+
+    The threshold is the quantile of a fixed sample (every s-th value), so
+    the count is near ``want``, not exact, and the choice deterministic;
+    every finite value when there are at most ``2 want``. Parallel.
+    """
+    n = vals.shape[0]
+    thr = INF
+    if n > 2 * want:
+        stride = max(1, n // 8192)
+        sample = vals[::stride].copy()
+        finite = sample[sample < INF]
+        if finite.shape[0] > 0:
+            q = min(finite.shape[0] - 1, want // stride)  # a sampled value stands for stride
+            thr = np.partition(finite, q)[q]
+    n_chunks = 64
+    counts = np.zeros(n_chunks + 1, np.int64)
+    for ch in prange(n_chunks):
+        c = 0
+        for x in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
+            if vals[x] <= thr and vals[x] < INF:
+                c += 1
+        counts[ch + 1] = c
+    for ch in range(n_chunks):
+        counts[ch + 1] += counts[ch]
+    ids = np.empty(counts[n_chunks], np.int64)
+    for ch in prange(n_chunks):
+        at = counts[ch]
+        for x in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
+            if vals[x] <= thr and vals[x] < INF:
+                ids[at] = x
+                at += 1
+    order = np.argsort(vals[ids], kind="mergesort")  # stable: equal keys by index
+    return ids[order]
+
+
+@njit(cache=True, parallel=True)
 def round_candidates(key, active, want):
-    """The ``want`` active points of lowest (key, index) with a finite key, in that order."""
+    """About ``want`` active points of lowest (key, index) with a finite key, in that order."""
     n = key.shape[0]
-    ids = np.empty(n, np.int64)
     vals = np.empty(n)
-    m = 0
-    for x in range(n):
-        if active[x] and key[x] < INF:
-            ids[m] = x
-            vals[m] = key[x]
-            m += 1
-    if m > want:
-        thr = np.partition(vals[:m].copy(), want - 1)[want - 1]
-        below = 0
-        for i in range(m):
-            if vals[i] < thr:
-                below += 1
-        room = want - below  # the points at the threshold: the smallest indices
-        mm = 0
-        for i in range(m):
-            if vals[i] < thr or (vals[i] == thr and room > 0):
-                if vals[i] == thr:
-                    room -= 1
-                ids[mm] = ids[i]
-                vals[mm] = vals[i]
-                mm += 1
-        m = mm
-    order = np.argsort(vals[:m], kind="mergesort")  # stable: equal keys by index
-    return ids[:m][order]
+    for x in prange(n):
+        vals[x] = key[x] if active[x] else INF
+    return lowest_keys(vals, want)
 
 
 @njit(cache=True)

@@ -35,6 +35,7 @@ from ._reduction_kernels import (
     _to_frame,
     delaunay_fan,
     local_frame,
+    lowest_keys,
 )
 
 #: at most this many mean-curvature iterations (the cotangent weights are re-read each time)
@@ -679,43 +680,11 @@ def update_entropy(points, normals, colors, R, rlen, dist, curv, cc, col, M, w, 
 
 @njit(cache=True, parallel=True)
 def round_candidates(M, rlen, ropen, blocked, n_cur, want):
-    """About ``want`` eligible points of highest entropy, highest first (ties: smaller index).
-
-    The threshold is the entropy quantile of a fixed sample of the points
-    (every s-th), so the count is near ``want``, not exact; the choice is
-    deterministic. All eligible points when there are at most ``2 want``.
-    """
+    """About ``want`` eligible points of highest entropy, highest first (ties: smaller index)."""
     vals = np.empty(n_cur)
     for x in prange(n_cur):
         vals[x] = -M[x] if (not blocked[x] and _eligible(rlen, ropen, x)) else INF
-    thr = INF
-    if n_cur > 2 * want:
-        stride = max(1, n_cur // 8192)
-        sample = vals[::stride].copy()
-        finite = sample[sample < INF]
-        if finite.shape[0] > 0:
-            # each sampled point stands for ``stride`` points
-            q = min(finite.shape[0] - 1, want // stride)
-            thr = np.partition(finite, q)[q]
-    n_chunks = 64
-    counts = np.zeros(n_chunks + 1, np.int64)
-    for ch in prange(n_chunks):
-        c = 0
-        for x in range((n_cur * ch) // n_chunks, (n_cur * (ch + 1)) // n_chunks):
-            if vals[x] <= thr and vals[x] < INF:
-                c += 1
-        counts[ch + 1] = c
-    for ch in range(n_chunks):
-        counts[ch + 1] += counts[ch]
-    ids = np.empty(counts[n_chunks], np.int64)
-    for ch in prange(n_chunks):
-        at = counts[ch]
-        for x in range((n_cur * ch) // n_chunks, (n_cur * (ch + 1)) // n_chunks):
-            if vals[x] <= thr and vals[x] < INF:
-                ids[at] = x
-                at += 1
-    order = np.argsort(vals[ids], kind="mergesort")
-    return ids[order]
+    return lowest_keys(vals, want)
 
 
 # -- levels of detail -------------------------------------------------------------------------
