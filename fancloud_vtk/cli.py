@@ -249,71 +249,71 @@ def cmd_entropy(args) -> int:
 
 
 def cmd_reduce(args) -> int:
-    from fancloud_vtk.algorithms.convert import MESH_FORMATS
     from fancloud_vtk.core.reduction import reduce
 
-    _check_output(args.output, MESH_FORMATS if args.mesh else ".vtp")
     if args.n_points is None and args.keep is None:
         raise ValueError("give --keep F (a fraction) or --n N (a count)")
+
+    def call(fc, progress):
+        return reduce(fc, n_points=args.n_points, keep=args.keep, weights=args.weights,
+                      method=args.method, colors=args.color_array or None, exact=args.exact,
+                      progress=progress)
+
+    def rows(fc, small):
+        return [("kept", f"{small.n_points:,} ({100 * small.n_points / fc.n_points:.1f}%)"),
+                ("weights", str(tuple(args.weights))), ("method", args.method)]
+
+    return _fan_cloud_verb(args, "reduce", "reduction", call, rows)
+
+
+def cmd_refine(args) -> int:
+    from fancloud_vtk.core.refinement import refine
+
+    if args.n_points is None and args.factor is None:
+        raise ValueError("give --factor F (> 1) or --n N (a count)")
+
+    def call(fc, progress):
+        return refine(fc, n_points=args.n_points, factor=args.factor, weights=args.weights,
+                      colors=args.color_array or None, move=args.move, exact=args.exact,
+                      progress=progress)
+
+    def rows(fc, fine):
+        return [("refined", f"{fine.n_points:,} (x{fine.n_points / fc.n_points:.2f})"),
+                ("weights", str(tuple(args.weights)))]
+
+    return _fan_cloud_verb(args, "refine", "refinement", call, rows)
+
+
+def _fan_cloud_verb(args, name: str, stage: str, call, describe) -> int:
+    """Read the input as a fan cloud, run ``call(fc, progress)``, save the result (its mesh
+    with ``--mesh``) and print the summary: the input, ``describe(fc, result)``, the times."""
+    from fancloud_vtk.algorithms.convert import MESH_FORMATS, mesh_to_vtk, write_mesh
+
+    _check_output(args.output, MESH_FORMATS if args.mesh else ".vtp")
     t0 = time.perf_counter()
     fc, kind = _load_any(args.input, _params(args, FAN_PARAMS), args.quiet)
     t1 = time.perf_counter()
-    progress = _Progress("reduce", args.quiet)
+    progress = _Progress(name, args.quiet)
     try:
-        small = reduce(fc, n_points=args.n_points, keep=args.keep, weights=args.weights,
-                       method=args.method, colors=args.color_array or None, exact=args.exact,
-                       progress=progress)
+        out = call(fc, progress)
     finally:
         progress.close()
     t2 = time.perf_counter()
-    rows = [("input", f"{kind}, {fc.n_points:,} points"),
-            ("kept", f"{small.n_points:,} ({100 * small.n_points / fc.n_points:.1f}%)"),
-            ("weights", str(tuple(args.weights))), ("method", args.method),
-            ("time: read and fans", f"{t1 - t0:.2f} s"), ("time: reduction", f"{t2 - t1:.2f} s")]
-    return _write_fan_cloud(small, kind, args, rows)
-
-
-def _write_fan_cloud(fc, kind: str, args, rows: list) -> int:
-    """Save the result (its mesh with ``--mesh``) and print the summary rows."""
+    rows = [("input", f"{kind}, {fc.n_points:,} points"), *describe(fc, out),
+            ("time: read and fans", f"{t1 - t0:.2f} s"), (f"time: {stage}", f"{t2 - t1:.2f} s")]
     if args.mesh:
-        from fancloud_vtk.algorithms.convert import mesh_to_vtk, write_mesh
         from fancloud_vtk.algorithms.reduce import mesh_rings
         from fancloud_vtk.core.mesh import fan_cloud_to_mesh
 
-        mesh = fan_cloud_to_mesh(fc, rings=mesh_rings(kind))
+        mesh = fan_cloud_to_mesh(out, rings=mesh_rings(kind))
         write_mesh(mesh_to_vtk(mesh), args.output)
         rows += [("triangles", f"{mesh.n_triangles:,}"), ("holes", f"{mesh.stats['holes']}")]
     else:
-        fc.save(args.output)
+        out.save(args.output)
     rows.append(("written", args.output))
     if not args.quiet:
         _print_rows(rows)
     return 0
-
-
-def cmd_refine(args) -> int:
-    from fancloud_vtk.algorithms.convert import MESH_FORMATS
-    from fancloud_vtk.core.refinement import refine
-
-    _check_output(args.output, MESH_FORMATS if args.mesh else ".vtp")
-    if args.n_points is None and args.factor is None:
-        raise ValueError("give --factor F (> 1) or --n N (a count)")
-    t0 = time.perf_counter()
-    fc, kind = _load_any(args.input, _params(args, FAN_PARAMS), args.quiet)
-    t1 = time.perf_counter()
-    progress = _Progress("refine", args.quiet)
-    try:
-        fine = refine(fc, n_points=args.n_points, factor=args.factor, weights=args.weights,
-                      colors=args.color_array or None, move=args.move, exact=args.exact,
-                      progress=progress)
-    finally:
-        progress.close()
-    t2 = time.perf_counter()
-    rows = [("input", f"{kind}, {fc.n_points:,} points"),
-            ("refined", f"{fine.n_points:,} (x{fine.n_points / fc.n_points:.2f})"),
-            ("weights", str(tuple(args.weights))),
-            ("time: read and fans", f"{t1 - t0:.2f} s"), ("time: refinement", f"{t2 - t1:.2f} s")]
-    return _write_fan_cloud(fine, kind, args, rows)
 
 
 def cmd_demo(args) -> int:

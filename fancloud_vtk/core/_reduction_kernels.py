@@ -212,6 +212,15 @@ def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, st
 
 
 @njit(cache=True)
+def fan_scratch(width):
+    """Scratch arrays of :func:`delaunay_fan` for rings of at most ``width`` points:
+    (cand, xs, ys, order, hull)."""
+    cap = 4 * width + 8
+    return (np.empty(cap, np.int64), np.empty(cap), np.empty(cap), np.empty(cap, np.int64),
+            np.empty(cap + 1, np.int64))
+
+
+@njit(cache=True)
 def delaunay_fan(points, normals, is_open, x, cand, m, xs, ys, order, hull, width, out):
     """x's local Delaunay ring in its tangent plane among ``cand[:m]``, written to ``out``.
 
@@ -349,12 +358,7 @@ def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, activ
     """
     n = points.shape[0]
     width = R.shape[1]
-    cap = 4 * width + 8
-    cand = np.empty(cap, np.int64)
-    xs = np.empty(cap)
-    ys = np.empty(cap)
-    ordr = np.empty(cap, np.int64)
-    hull = np.empty(cap + 1, np.int64)
+    cand, xs, ys, ordr, hull = fan_scratch(width)
     aff = np.empty(n if n < 4096 else 4096, np.int64)
     new_rings = np.empty((aff.shape[0], width), np.int32)
     new_len = np.empty(aff.shape[0], np.int64)
@@ -663,12 +667,7 @@ def reform_batch(points, normals, R, rlen, ropen, IN, nin, acc, buf_off, stamps,
     frames = np.empty((n_acc, 6))
     n_chunks = stamps.shape[0]
     for ch in prange(n_chunks):
-        cap = 4 * width + 8
-        cand = np.empty(cap, np.int64)
-        xs = np.empty(cap)
-        ys = np.empty(cap)
-        ordr = np.empty(cap, np.int64)
-        hull = np.empty(cap + 1, np.int64)
+        cand, xs, ys, ordr, hull = fan_scratch(width)
         stamp = stamps[ch]
         tag = tags[ch]
         for i in range((n_acc * ch) // n_chunks, (n_acc * (ch + 1)) // n_chunks):

@@ -34,6 +34,7 @@ from ._reduction_kernels import (
     _sift_down,
     _to_frame,
     delaunay_fan,
+    fan_scratch,
     local_frame,
     lowest_keys,
 )
@@ -464,12 +465,7 @@ def refine_steps(points, normals, colors, R, rlen, ropen, dist, curv, cc, col, M
     until ``n_final`` points. Returns (points reached, rr, ex, ex_open, ex_off, er)."""
     n_alloc = points.shape[0]
     width = R.shape[1]
-    cap = 4 * width + 8
-    cand = np.empty(cap, np.int64)
-    xs = np.empty(cap)
-    ys = np.empty(cap)
-    ordr = np.empty(cap, np.int64)
-    hull = np.empty(cap + 1, np.int64)
+    cand, xs, ys, ordr, hull = fan_scratch(width)
     c = np.empty(width)
     stamp = np.zeros(n_alloc, np.int64)
     tag = 0
@@ -593,12 +589,7 @@ def plan_batch(points, normals, colors, R, rlen, ropen, M, acc, slot0, move, gap
     width = R.shape[1]
     n_chunks = stamps.shape[0]
     for ch in prange(n_chunks):
-        cap = 4 * width + 8
-        cand = np.empty(cap, np.int64)
-        xs = np.empty(cap)
-        ys = np.empty(cap)
-        ordr = np.empty(cap, np.int64)
-        hull = np.empty(cap + 1, np.int64)
+        cand, xs, ys, ordr, hull = fan_scratch(width)
         c = np.empty(width)
         stamp = stamps[ch]
         tag = tags[ch]
