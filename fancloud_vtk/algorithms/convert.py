@@ -142,6 +142,15 @@ def fancloud_to_vtk(fc: FanCloud) -> vtkPolyData:
     return out
 
 
+def front_to_vtk(front) -> vtkPolyData:
+    """A view-dependent front (``core.vdfc.Front``) as ``vtkPolyData``.
+
+    Points, distinct triangles, ``Normals`` and the point arrays ``node_id``,
+    ``level``, ``error`` (and the colours).
+    """
+    return _triangle_polydata(front.points, front.triangles, front.normals, front.point_data)
+
+
 def is_fancloud(dataset) -> bool:
     """True if the dataset carries the fan cloud arrays (``fan_offsets``, ``fan_ring``)."""
     fd = dataset.GetFieldData()
