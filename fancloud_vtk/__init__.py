@@ -13,6 +13,12 @@ from .core.model import FanCloud, find_color_array
 from .core.reduction import Hierarchy, hierarchy, reduce
 from .core.refinement import refine
 from .core.validation import FanCloudInputError
+from .core.vdfc import (
+    ViewDependentFanCloud,
+    terrain_blocks,
+    terrain_fan_cloud,
+    terrain_path,
+)
 
 __version__ = "0.1.0"
 
@@ -24,6 +30,7 @@ __all__ = [
     "FanCloudInputError",
     "Hierarchy",
     "TriangleMesh",
+    "ViewDependentFanCloud",
     "build_fans",
     "entropy",
     "fan_cloud_of_mesh",
@@ -32,4 +39,7 @@ __all__ = [
     "hierarchy",
     "reduce",
     "refine",
+    "terrain_blocks",
+    "terrain_fan_cloud",
+    "terrain_path",
 ]

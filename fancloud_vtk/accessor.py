@@ -20,12 +20,20 @@ from fancloud_vtk.algorithms.fans import FanCloudFilter
 from fancloud_vtk.algorithms.mesh import FanCloudMeshFilter
 from fancloud_vtk.algorithms.reduce import FanCloudReduceFilter
 from fancloud_vtk.algorithms.refine import FanCloudRefineFilter
+from fancloud_vtk.algorithms.vdfc import (
+    FanCloudViewDependentFilter,
+    build_forest,
+    e_max_of,
+    follow_camera,
+)
+from fancloud_vtk.core.vdfc import ViewDependentFanCloud
 from fancloud_vtk.params import (
     ENTROPY_PARAMS,
     FAN_PARAMS,
     MESH_PARAMS,
     REDUCE_PARAMS,
     REFINE_PARAMS,
+    VDFC_PARAMS,
     Param,
     check_params,
 )
@@ -55,6 +63,54 @@ def _run(algorithm, dataset, progress_bar: bool, message: str) -> pv.PolyData:
     result = pv.PolyData()
     result.ShallowCopy(output)
     return result
+
+
+class PyVistaViewDependentFanCloud(ViewDependentFanCloud):
+    """A :class:`~fancloud_vtk.ViewDependentFanCloud` whose fronts are ``pyvista.PolyData``.
+
+    Returned by ``dataset.fancloud.vdfc()``; it keeps the verb's ``e_max``,
+    ``d_max`` and ``aspect`` as the defaults of :meth:`front`, and can put a
+    live front into a plotter (:meth:`add_to`).
+    """
+
+    @classmethod
+    def of(cls, vd: ViewDependentFanCloud, values: dict) -> PyVistaViewDependentFanCloud:
+        out = cls.__new__(cls)
+        out.__dict__.update(vd.__dict__)
+        out.values = dict(values)
+        return out
+
+    def front(self, camera, e_max=None, d_max=None, *, aspect=None, incremental=True):
+        """The active front for ``camera`` as a new ``pyvista.PolyData``.
+
+        ``e_max``, ``d_max``, ``aspect``: as for
+        :meth:`fancloud_vtk.ViewDependentFanCloud.front`; by default the
+        values given to ``vdfc()`` (``e_max`` 0: 0.1% of the diagonal).
+        """
+        e = e_max if e_max is not None else e_max_of(self, self.values["e_max"])
+        d = d_max if d_max is not None else (self.values["d_max"] or None)
+        a = aspect if aspect is not None else (self.values["aspect"] or None)
+        return pv.wrap(super().front(camera, e, d, aspect=a, incremental=incremental))
+
+    def filter(self) -> FanCloudViewDependentFilter:
+        """A :class:`~fancloud_vtk.algorithms.FanCloudViewDependentFilter` over this forest."""
+        params = {k: v for k, v in self.values.items()
+                  if k in {p.name for p in FanCloudViewDependentFilter.PARAMETERS}}
+        alg = FanCloudViewDependentFilter(**params)
+        alg.SetForest(self)
+        return alg
+
+    def add_to(self, plotter, **mesh_kwargs):
+        """Show the live front in ``plotter``: it follows the plotter's camera.
+
+        Returns the actor of ``plotter.add_mesh(filter, **mesh_kwargs)``; the
+        filter is kept as ``live_filter`` (its ``last_stats`` tell the size
+        and update time of the front shown).
+        """
+        alg = self.filter()
+        follow_camera(plotter, alg)
+        self.live_filter = alg
+        return plotter.add_mesh(alg, **mesh_kwargs)
 
 
 def _document(table: tuple[Param, ...], returns: str = "pv.PolyData"):
@@ -305,6 +361,71 @@ class FanCloudAccessor:
         """
         values = check_params(FAN_PARAMS + REFINE_PARAMS, params)
         return _run(FanCloudRefineFilter(**values), self._dataset, progress_bar, "Refining")
+
+    @_document(FAN_PARAMS + VDFC_PARAMS, returns="PyVistaViewDependentFanCloud")
+    def vdfc(self, *, progress_bar: bool = False, **params) -> PyVistaViewDependentFanCloud:
+        """The view-dependent fan cloud: a merge forest and its fronts (paper section 8).
+
+        Builds the merge forest of a height field (a 2-d ``pyvista.ImageData``
+        whose active scalars are the heights), a fan cloud, a triangle mesh
+        or a point set. Its :meth:`~PyVistaViewDependentFanCloud.front` gives
+        the active front for a camera as a ``pyvista.PolyData`` with point
+        arrays ``node_id``, ``level`` and ``error``;
+        :meth:`~PyVistaViewDependentFanCloud.add_to` shows a front that
+        follows a plotter's camera.
+
+        Parameters
+        ----------
+        {params}
+        progress_bar : bool, default: False
+            Show a progress bar (needs ``tqdm``).
+
+        Returns
+        -------
+        PyVistaViewDependentFanCloud
+            A :class:`fancloud_vtk.ViewDependentFanCloud` whose fronts are
+            ``pyvista.PolyData``.
+
+        See Also
+        --------
+        fancloud_vtk.ViewDependentFanCloud.build : the same on a FanCloud.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> import pyvista as pv
+        >>> z = np.add.outer(np.sin(np.linspace(0, 6, 100)), np.cos(np.linspace(0, 6, 100)))
+        >>> grid = pv.ImageData(dimensions=(100, 100, 1), spacing=(0.1, 0.1, 1))
+        >>> grid["height"] = z.ravel()
+        >>> vd = grid.fancloud.vdfc(e_max=0.02)
+        >>> front = vd.front(((5, -5, 4), (5, 5, 0), (0, 0, 1), 40.0))
+        >>> sorted(front.point_data.keys())
+        ['Normals', 'error', 'level', 'node_id']
+        >>> front.n_points < grid.n_points
+        True
+        >>> pl = pv.Plotter()
+        >>> actor = vd.add_to(pl, color="tan")
+        >>> pl.show()  # doctest: +SKIP
+        """
+        values = check_params(FAN_PARAMS + VDFC_PARAMS, params)
+        data = self._dataset if self._dataset.IsA("vtkImageData") else \
+            _point_set(self._dataset)
+        if progress_bar:
+            from tqdm import tqdm
+
+            bar = tqdm(total=100, desc="Merge forest")
+
+            def progress(f, m):
+                bar.n = int(100 * f)
+                bar.refresh()
+        else:
+            bar, progress = None, None
+        try:
+            vd, _ = build_forest(data, values, progress)
+        finally:
+            if bar is not None:
+                bar.close()
+        return PyVistaViewDependentFanCloud.of(vd, values)
 
     def hierarchy(self, n_points=None, *, weights=(1.0, 1.0, 50.0, 0.0), method="entropy",
                   color_array="", exact=False, **fan_params):

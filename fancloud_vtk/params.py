@@ -263,3 +263,32 @@ REFINE_PARAMS: tuple[Param, ...] = (
           "output the triangle mesh of the refined fan cloud (fan_cloud_to_mesh) instead of "
           "the fan cloud"),
 )
+
+#: Parameters of the view-dependent fan cloud (paper section 8):
+#: ViewDependentFanCloud.build and front, FanCloudViewDependentFilter,
+#: dataset.fancloud.vdfc(), ``fancloud vdfc`` (with FAN_PARAMS for point input).
+VDFC_PARAMS: tuple[Param, ...] = (
+    Param("e_max", "float", 0.0,
+          "largest error allowed at the range of sight d_max, in data units; nearer nodes "
+          "get proportionally less (0: 0.1% of the diagonal of the bounds)",
+          range=(0.0, 1e300)),
+    Param("d_max", "float", 0.0,
+          "range of sight (0: from the eye to the farthest corner of the bounds)",
+          range=(0.0, 1e300)),
+    Param("merge", "choice", "entropy",
+          "how two points merge: 'entropy' (at their entropy-weighted mean) or 'half_edge' "
+          "(at the lower-entropy neighbour: a half-edge collapse)",
+          choices=("entropy", "half_edge")),
+    Param("weights", "vector", (1.0, 1.0, 0.0, 0.0),
+          "entropy weights (a1, a2, a3, a4) of the merge order",
+          range=(0.0, 1e12), size=4),
+    _COLOR_ARRAY,
+    Param("n_roots", "int", 1, "stop merging when this many nodes are left", range=(1, 2**62)),
+    Param("block_size", "int", 0,
+          "height fields (image data): cut the grid into blocks of about this many cells a "
+          "side that share their boundary points, built in parallel (0: one block)",
+          range=(0, 2**31)),
+    Param("aspect", "float", 0.0,
+          "width / height of the view (0: 1, or the viewer's when it follows a plotter)",
+          range=(0.0, 1e6)),
+)

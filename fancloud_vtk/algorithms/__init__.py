@@ -11,6 +11,7 @@ from .fans import FanCloudFilter
 from .mesh import FanCloudMeshFilter
 from .reduce import FanCloudReduceFilter, FanCloudSelectiveRefineFilter
 from .refine import FanCloudRefineFilter
+from .vdfc import FanCloudViewDependentFilter, flythrough, follow_camera
 
 __all__ = [
     "FanCloudAlgorithm",
@@ -20,8 +21,11 @@ __all__ = [
     "FanCloudReduceFilter",
     "FanCloudRefineFilter",
     "FanCloudSelectiveRefineFilter",
+    "FanCloudViewDependentFilter",
     "fancloud_from_vtk",
     "fancloud_to_vtk",
+    "flythrough",
+    "follow_camera",
     "is_fancloud",
     "run",
 ]

@@ -720,7 +720,6 @@ def update_front(pos, radius, bound, child, parent, state, front, n_front, plane
     longer needs refining; only the nodes that change state are visited
     besides the front itself.
     """
-    n = pos.shape[0]
     out = np.empty(max(2 * n_front + 16, 64), np.int64)
     m = 0
     visited = 0
@@ -854,14 +853,15 @@ def _has_pair(mring, moff, v, s, t, closed):
 
 
 @njit(cache=True, parallel=True)
-def front_triangles(pos, radius, child, parent, state, active, aidx, is_open, ring_off, ring,
-                    planes):
-    """Distinct triangles of the active fans, as indices into ``active``.
+def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring):
+    """Distinct triangles of the active fans; returns (triangles, extra points).
 
     ``aidx[x]`` is x's index in ``active`` (or -1). A fan neighbour that is
-    not active is replaced by its active ancestor or representative; a
-    triangle whose stand-in is outside the frustum is dropped. A triangle is
-    written once, by the smallest of its points whose fan holds it.
+    not active is replaced by its active ancestor or representative. A
+    stand-in that is a front node outside the frustum joins the points as an
+    *extra* (index ``len(active) + j``, its ``aidx`` set here; it draws no fan
+    of its own), so the front has no ragged edge at the border of the view.
+    A triangle is written once, by the smallest of its points whose fan holds it.
     """
     na = active.shape[0]
     moff = np.zeros(na + 1, np.int64)
@@ -869,13 +869,36 @@ def front_triangles(pos, radius, child, parent, state, active, aidx, is_open, ri
         x = active[i]
         moff[i + 1] = moff[i] + ring_off[x + 1] - ring_off[x]
     mring = np.empty(moff[na], np.int64)
-    closed = np.empty(na, np.bool_)
     for i in prange(na):
         x = active[i]
-        closed[i] = not is_open[x]
         for j in range(ring_off[x + 1] - ring_off[x]):
-            y = _representative(pos, child, parent, state, x, ring[ring_off[x] + j])
-            mring[moff[i] + j] = aidx[y] if y >= 0 else -1
+            mring[moff[i] + j] = _representative(pos, child, parent, state, x,
+                                                 ring[ring_off[x] + j])
+    extra = np.empty(64, np.int64)
+    ne = 0
+    for a in range(mring.shape[0]):
+        y = mring[a]
+        if y >= 0 and aidx[y] < 0:
+            if ne >= extra.shape[0]:
+                bigger = np.empty(2 * extra.shape[0], np.int64)
+                bigger[:ne] = extra[:ne]
+                extra = bigger
+            extra[ne] = y
+            aidx[y] = na + ne
+            ne += 1
+    for a in prange(mring.shape[0]):
+        y = mring[a]
+        mring[a] = aidx[y] if y >= 0 else -1
+    # extras hold no fan: empty mapped rings after the active ones
+    moff2 = np.empty(na + ne + 1, np.int64)
+    moff2[:na + 1] = moff
+    for e in range(ne):
+        moff2[na + 1 + e] = moff[na]
+    closed = np.empty(na + ne, np.bool_)
+    for i in range(na):
+        closed[i] = not is_open[active[i]]
+    for e in range(ne):
+        closed[na + e] = False
     count = np.zeros(na + 1, np.int64)
     for phase in range(2):
         if phase == 1:
@@ -885,23 +908,23 @@ def front_triangles(pos, radius, child, parent, state, active, aidx, is_open, ri
         else:
             tri = np.empty((0, 3), np.int64)
         for i in prange(na):
-            k = moff[i + 1] - moff[i]
+            k = moff2[i + 1] - moff2[i]
             last = k if closed[i] else k - 1
             c = 0
             w0 = count[i]
             for j in range(last):
-                s = mring[moff[i] + j]
-                t = mring[moff[i] + (j + 1) % k]
+                s = mring[moff2[i] + j]
+                t = mring[moff2[i] + (j + 1) % k]
                 if s < 0 or t < 0 or s == t or s == i or t == i:
                     continue
-                if (s < i and _has_pair(mring, moff, s, i, t, closed)) or \
-                        (t < i and _has_pair(mring, moff, t, i, s, closed)):
+                if (s < i and _has_pair(mring, moff2, s, i, t, closed)) or \
+                        (t < i and _has_pair(mring, moff2, t, i, s, closed)):
                     continue
                 # the same triangle twice in this fan (a fan folding over stand-ins)
                 dup = False
                 for jj in range(j):
-                    s2 = mring[moff[i] + jj]
-                    t2 = mring[moff[i] + (jj + 1) % k]
+                    s2 = mring[moff2[i] + jj]
+                    t2 = mring[moff2[i] + (jj + 1) % k]
                     if (s2 == s and t2 == t) or (s2 == t and t2 == s):
                         dup = True
                         break
@@ -914,4 +937,4 @@ def front_triangles(pos, radius, child, parent, state, active, aidx, is_open, ri
                 c += 1
             if phase == 0:
                 count[i + 1] = c
-    return tri
+    return tri, extra[:ne].copy()

@@ -190,6 +190,61 @@ def terrain_blocks(shape, block_shape) -> list[np.ndarray]:
     return blocks
 
 
+def terrain_path(bounds, n_frames: int = 120, *, height: float = 0.15, look_ahead: float = 0.3,
+                 view_angle: float = 45.0, aspect: float = 4 / 3) -> list[tuple]:
+    """A smooth fly-through over a terrain: camera tuples along a gentle S-curve.
+
+    The eye flies from one end of the bounds to the other (along the longer
+    side) at ``height`` times the diagonal above the top, weaving sideways,
+    and looks ``look_ahead`` times the length ahead, down at the ground.
+
+    Parameters
+    ----------
+    bounds : sequence of 6 float
+        ``(xmin, xmax, ymin, ymax, zmin, zmax)`` of the terrain.
+    n_frames : int, default: 120
+        Number of cameras (>= 2).
+
+    Returns
+    -------
+    list of tuple
+        ``(position, focal_point, view_up, view_angle, aspect)`` per frame.
+
+    Examples
+    --------
+    >>> from fancloud_vtk import terrain_path
+    >>> path = terrain_path((0, 100, 0, 50, 0, 10), 5)
+    >>> len(path), path[0][2]
+    (5, (0.0, 0.0, 1.0))
+    """
+    b = np.asarray(bounds, dtype=np.float64)
+    if b.shape != (6,) or not np.isfinite(b).all() or (b[1::2] < b[::2]).any():
+        raise ValueError(f"bounds must be (xmin, xmax, ymin, ymax, zmin, zmax), got {bounds!r}")
+    if isinstance(n_frames, (bool, np.bool_)) or not isinstance(n_frames, (int, np.integer)) \
+            or n_frames < 2:
+        raise ValueError(f"n_frames must be an integer >= 2, got {n_frames!r}")
+    lo, hi = b[::2], b[1::2]
+    size = hi - lo
+    diag = float(np.linalg.norm(size))
+    along = 0 if size[0] >= size[1] else 1
+    side = 1 - along
+    t = np.linspace(0.05, 0.95 - look_ahead * 0.5, n_frames)
+    cams = []
+    for u in t:
+        eye = np.empty(3)
+        eye[along] = lo[along] + u * size[along]
+        eye[side] = lo[side] + size[side] * (0.5 + 0.25 * np.sin(2 * np.pi * u))
+        eye[2] = hi[2] + height * diag
+        u2 = min(u + look_ahead, 1.0)
+        focal = np.empty(3)
+        focal[along] = lo[along] + u2 * size[along]
+        focal[side] = lo[side] + size[side] * (0.5 + 0.25 * np.sin(2 * np.pi * u2))
+        focal[2] = lo[2] + 0.5 * size[2]
+        cams.append((tuple(float(v) for v in eye), tuple(float(v) for v in focal),
+                     (0.0, 0.0, 1.0), float(view_angle), float(aspect)))
+    return cams
+
+
 # -- cameras -------------------------------------------------------------------------
 
 
@@ -251,7 +306,8 @@ class Camera:
                     or not np.isfinite(v):
                 raise ValueError(f"camera {name} must be a finite number, got {v!r}")
         if not 0 < self.view_angle < 180:
-            raise ValueError(f"camera view angle must be in (0, 180) degrees, got {self.view_angle}")
+            raise ValueError(
+                f"camera view angle must be in (0, 180) degrees, got {self.view_angle}")
         if not self.aspect > 0:
             raise ValueError(f"camera aspect must be > 0, got {self.aspect}")
         f = np.subtract(self.focal_point, self.position, dtype=np.float64)
@@ -299,7 +355,9 @@ class Front:
 
     ``point_data`` holds ``node_id`` (forest node), ``level`` (depth below
     its root), ``error`` (e(r); 0 on original points) and the colours if the
-    cloud has them. ``stats`` holds ``active`` (points), ``triangles``,
+    cloud has them. ``stats`` holds ``active`` (points: ``in_view``, whose
+    bounding spheres meet the frustum, and ``border``, front nodes just
+    outside it that the fans of the former reach), ``triangles``,
     ``front`` (front nodes, in and out of view), ``visited`` (nodes looked
     at by this update), ``seconds`` (the whole update) and
     ``triangles_per_point``.
@@ -567,7 +625,7 @@ class ViewDependentFanCloud:
             else:
                 results = [one(ids) for ids in blist]
             alive_ids, edges = [], []
-            for ids, res in zip(blist, results):
+            for ids, res in zip(blist, results, strict=True):
                 gid = nodes.absorb(res, ids)
                 a, e = _alive_edges(res, gid)
                 alive_ids.append(a)
@@ -704,9 +762,11 @@ class ViewDependentFanCloud:
         self._front = front
         active = VK.active_nodes(self.positions, self.radius, planes, front)
         self._aidx[active] = np.arange(len(active))
-        tri = VK.front_triangles(self.positions, self.radius, self.children, self.parent,
-                                 self._state, active, self._aidx, self.open,
-                                 self.ring_offsets, self.ring, planes)
+        tri, extra = VK.front_triangles(self.positions, self.children, self.parent,
+                                        self._state, active, self._aidx, self.open,
+                                        self.ring_offsets, self.ring)
+        n_view = len(active)
+        active = np.concatenate([active, extra])
         self._aidx[active] = -1
         seconds = time.perf_counter() - t0
         pdata = {"node_id": active, "level": self.level[active],
@@ -716,7 +776,8 @@ class ViewDependentFanCloud:
             if self.color_uint8:
                 c = np.clip(np.round(c * 255), 0, 255).astype(np.uint8)
             pdata[self.color_name or "RGB"] = c
-        stats = {"active": len(active), "triangles": len(tri), "front": len(front),
+        stats = {"active": len(active), "in_view": n_view, "border": len(extra),
+                 "triangles": len(tri), "front": len(front),
                  "visited": int(visited), "seconds": seconds,
                  "triangles_per_point": len(tri) / len(active) if len(active) else 0.0,
                  "e_max": e_max, "d_max": d_max}
