@@ -8,6 +8,11 @@
     The entropy of every point (paper section 5) as point arrays.
 ``fancloud reduce IN -o OUT (--keep F | --n N) [--weights ...] [--method entropy|error] [--mesh]``
     Reduction by entropy to an exact number of points (paper section 5).
+``fancloud refine IN -o OUT (--factor F | --n N) [--weights ...] [--mesh]``
+    Refinement beyond the input resolution (paper section 7).
+``fancloud vdfc IN (--camera C -o frame.png|front.vtp | --flythrough DIR) [--e-max E]``
+    The view-dependent fan cloud (paper section 8): its front for a camera, or
+    a fly-through with per-frame front sizes and update times.
 ``fancloud demo [--out DIR]``
     The main job on built-in data (the Stanford bunny shipped with pymeshlab).
 ``fancloud bench fans [...]``
@@ -22,12 +27,15 @@ import sys
 import time
 import warnings
 
+import numpy as np
+
 from fancloud_vtk.params import (
     ENTROPY_PARAMS,
     FAN_PARAMS,
     MESH_PARAMS,
     REDUCE_PARAMS,
     REFINE_PARAMS,
+    VDFC_PARAMS,
     Param,
 )
 
@@ -316,6 +324,154 @@ def _fan_cloud_verb(args, name: str, stage: str, call, describe) -> int:
     return 0
 
 
+def _parse_camera(text: str, aspect: float):
+    """``"px,py,pz;fx,fy,fz;ux,uy,uz;angle"`` as a camera tuple."""
+    parts = [p.strip() for p in text.split(";")]
+    if len(parts) != 4:
+        raise ValueError('--camera must be "px,py,pz;fx,fy,fz;ux,uy,uz;angle" (4 groups '
+                         f"separated by ';'), got {text!r}")
+    vecs = []
+    for name, part in zip(("position", "focal point", "view up"), parts[:3], strict=True):
+        try:
+            v = tuple(float(x) for x in part.split(","))
+        except ValueError:
+            raise ValueError(f"--camera {name} must be three numbers, got {part!r}") from None
+        if len(v) != 3:
+            raise ValueError(f"--camera {name} must be three numbers, got {part!r}")
+        vecs.append(v)
+    try:
+        angle = float(parts[3])
+    except ValueError:
+        raise ValueError(f"--camera view angle must be a number, got {parts[3]!r}") from None
+    return (*vecs, angle, aspect)
+
+
+def _parse_size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--size must be WIDTHxHEIGHT, e.g. 800x600, got {text!r}") from None
+    if w < 16 or h < 16:
+        raise ValueError(f"--size must be at least 16x16, got {text!r}")
+    return w, h
+
+
+def _height_field_npz(path: str, spacing):
+    """(heights, spacing) of a height field ``.npz``: its ``elevation``, ``heights``, ...
+
+    or else its first 2-d array; the spacing from ``dx`` and ``dy`` if it has them.
+    """
+    with np.load(path, allow_pickle=False) as z:
+        names = [k for k in ("elevation", "heights", "height", "z") if k in z.files]
+        names += [k for k in z.files if z[k].ndim == 2 and k not in names]
+        if not names:
+            raise ValueError(f"{path} holds no 2-d array of heights")
+        heights = np.asarray(z[names[0]], dtype=np.float64)
+        if spacing is None and "dx" in z.files and "dy" in z.files:
+            spacing = (float(z["dx"]), float(z["dy"]))
+    return heights, (1.0, 1.0) if spacing is None else spacing
+
+
+def _load_forest(args, values):
+    """(forest, description) of the ``fancloud vdfc`` input."""
+    from fancloud_vtk.algorithms.vdfc import build_forest, image_of_heights
+    from fancloud_vtk.core.vdfc import FORMAT, ViewDependentFanCloud
+
+    path = args.input
+    if path == "jacksboro" or path.lower().endswith(".npz"):
+        if path == "jacksboro":
+            from fancloud_vtk.data import jacksboro_terrain
+
+            heights, spacing, _ = jacksboro_terrain()
+        else:
+            if not os.path.isfile(path):
+                raise OSError(f"no such file: {path}")
+            with np.load(path, allow_pickle=False) as z:
+                is_forest = "format" in z.files and str(z["format"]) == FORMAT
+            if is_forest:
+                vd = ViewDependentFanCloud.load(path)
+                return vd, f"saved forest, {vd.n_leaves:,} points"
+            heights, spacing = _height_field_npz(path, args.spacing)
+        image = image_of_heights(heights, spacing)
+        vd, _ = build_forest(image, values)
+        return vd, f"height field {heights.shape[0]} x {heights.shape[1]}"
+    fc, kind = _load_any(path, _params(args, FAN_PARAMS), args.quiet)
+    from fancloud_vtk.core.vdfc import ViewDependentFanCloud as VDFC
+
+    vd = VDFC.build(fc, values["merge"], weights=values["weights"], n_roots=values["n_roots"],
+                    colors=values["color_array"] or None)
+    return vd, f"{kind}, {fc.n_points:,} points"
+
+
+def cmd_vdfc(args) -> int:
+    from fancloud_vtk.algorithms.vdfc import e_max_of, flythrough
+
+    if (args.camera is None) == (args.flythrough is None):
+        raise ValueError("give either --camera C with -o frame.png|front.vtp, or --flythrough DIR")
+    if args.camera is not None:
+        if args.output is None:
+            raise ValueError("--camera needs -o frame.png or -o front.vtp")
+        _check_output(args.output, (".png", ".vtp"))
+    w, h = _parse_size(args.size)
+    camera = _parse_camera(args.camera, w / h) if args.camera is not None else None
+    values = {**_params(args, FAN_PARAMS + tuple(x for x in VDFC_PARAMS if x.name != "aspect")),
+              "aspect": w / h}
+    t0 = time.perf_counter()
+    vd, what = _load_forest(args, values)
+    t1 = time.perf_counter()
+    if args.save_forest:
+        vd.save(args.save_forest)
+    e_max = e_max_of(vd, values["e_max"])
+    d_max = values["d_max"] or None
+    rows = [("input", what), ("forest", f"{vd.n_nodes:,} nodes, {len(vd.roots):,} roots"),
+            ("time: forest", f"{t1 - t0:.2f} s"), ("e_max", f"{e_max:.6g}")]
+    if camera is not None:
+        if args.output.lower().endswith(".vtp"):
+            from fancloud_vtk.algorithms.convert import write_vtp
+
+            front = vd.front_arrays(camera, e_max, d_max)
+            write_vtp(front.to_vtk(), args.output)
+            stats = front.stats
+            front_ms = 1e3 * stats["seconds"]
+        else:
+            import shutil
+            import tempfile
+
+            with tempfile.TemporaryDirectory() as tmp:
+                row = flythrough(vd, [camera], e_max, tmp, d_max=d_max, size=(w, h))[0]
+                shutil.move(os.path.join(tmp, "frame_0000.png"), args.output)
+            stats = row
+            front_ms = row["front_ms"]
+        rows += [("active points", f"{stats['active']:,}"),
+                 ("triangles", f"{stats['triangles']:,} "
+                               f"({stats['triangles_per_point']:.2f} per point)"),
+                 ("time: front", f"{front_ms:.1f} ms"), ("written", args.output)]
+    else:
+        from fancloud_vtk.core.vdfc import terrain_path
+
+        cams = terrain_path(vd.bounds(), args.frames, aspect=w / h)
+        progress = _Progress("fly-through", args.quiet)
+        try:
+            frames = flythrough(vd, cams, e_max, args.flythrough, d_max=d_max, size=(w, h),
+                                progress=progress)
+        finally:
+            progress.close()
+        ms = np.array([f["front_ms"] for f in frames])
+        act = np.array([f["active"] for f in frames])
+        tpp = np.array([f["triangles_per_point"] for f in frames])
+        rows += [("frames", f"{len(frames)}"),
+                 ("active points", f"mean {act.mean():,.0f}  min {act.min():,}  max {act.max():,}"),
+                 ("triangles per point", f"mean {tpp.mean():.2f}  min {tpp.min():.2f}  "
+                                         f"max {tpp.max():.2f}"),
+                 ("front update", f"mean {ms.mean():.2f} ms  max {ms.max():.2f} ms"),
+                 ("written", os.path.join(args.flythrough, "frame_*.png, frames.csv"))]
+    if args.save_forest:
+        rows.append(("forest written", args.save_forest))
+    if not args.quiet:
+        _print_rows(rows)
+    return 0
+
+
 def cmd_demo(args) -> int:
     from fancloud_vtk.demo import run_demo
 
@@ -382,6 +538,25 @@ def make_parser() -> argparse.ArgumentParser:
                                       if x.name not in ("factor", "n_points")))
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_refine)
+
+    p = sub.add_parser("vdfc", help="view-dependent fan cloud: the front for a camera, or a "
+                                    "fly-through (paper section 8)")
+    p.add_argument("input", help="a height field .npz (a 2-d array: elevation/heights/...; dx and "
+                                 "dy if present), 'jacksboro' (matplotlib's DEM), a forest .npz "
+                                 "(--save-forest), a fan cloud .vtp, a mesh or a point cloud")
+    p.add_argument("--camera", help='"px,py,pz;fx,fy,fz;ux,uy,uz;angle" (view angle in degrees)')
+    p.add_argument("-o", "--output", help="with --camera: frame.png (rendered) or front.vtp")
+    p.add_argument("--flythrough", metavar="DIR",
+                   help="fly over the bounds (terrain_path) and write DIR/frame_*.png and "
+                        "DIR/frames.csv (per-frame front size and update time)")
+    p.add_argument("--frames", type=int, default=120, help="frames of the fly-through")
+    p.add_argument("--size", default="800x600", help="image size WIDTHxHEIGHT")
+    p.add_argument("--spacing", type=_vector(2), default=None,
+                   help="grid spacing dx,dy of a height field .npz without dx/dy (default 1,1)")
+    p.add_argument("--save-forest", metavar="F.npz", help="also save the forest")
+    _add_params(p, FAN_PARAMS + tuple(x for x in VDFC_PARAMS if x.name != "aspect"))
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    p.set_defaults(func=cmd_vdfc)
 
     p = sub.add_parser("demo", help="fan cloud and mesh of the bunny: built, saved, rendered")
     p.add_argument("--out", default="fancloud_demo", help="output folder (default: %(default)s)")
