@@ -852,6 +852,24 @@ def _has_pair(mring, moff, v, s, t, closed):
     return False
 
 
+@njit(cache=True)
+def _extras(mring, aidx, na):
+    """Stand-ins that are not active yet: numbered ``na, na + 1, ...`` in ``aidx``."""
+    extra = np.empty(64, np.int64)
+    ne = 0
+    for a in range(mring.shape[0]):
+        y = mring[a]
+        if y >= 0 and aidx[y] < 0:
+            if ne >= extra.shape[0]:
+                bigger = np.empty(2 * extra.shape[0], np.int64)
+                bigger[:ne] = extra[:ne]
+                extra = bigger
+            extra[ne] = y
+            aidx[y] = na + ne
+            ne += 1
+    return extra[:ne].copy()
+
+
 @njit(cache=True, parallel=True)
 def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring):
     """Distinct triangles of the active fans; returns (triangles, extra points).
@@ -874,18 +892,8 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
         for j in range(ring_off[x + 1] - ring_off[x]):
             mring[moff[i] + j] = _representative(pos, child, parent, state, x,
                                                  ring[ring_off[x] + j])
-    extra = np.empty(64, np.int64)
-    ne = 0
-    for a in range(mring.shape[0]):
-        y = mring[a]
-        if y >= 0 and aidx[y] < 0:
-            if ne >= extra.shape[0]:
-                bigger = np.empty(2 * extra.shape[0], np.int64)
-                bigger[:ne] = extra[:ne]
-                extra = bigger
-            extra[ne] = y
-            aidx[y] = na + ne
-            ne += 1
+    extra = _extras(mring, aidx, na)
+    ne = extra.shape[0]
     for a in prange(mring.shape[0]):
         y = mring[a]
         mring[a] = aidx[y] if y >= 0 else -1
@@ -937,4 +945,4 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
                 c += 1
             if phase == 0:
                 count[i + 1] = c
-    return tri, extra[:ne].copy()
+    return tri, extra
