@@ -37,6 +37,7 @@ from fancloud_vtk.params import (
     REFINE_PARAMS,
     VDFC_PARAMS,
     Param,
+    check_params,
 )
 
 
@@ -405,17 +406,20 @@ def _load_forest(args, values):
 
 def cmd_vdfc(args) -> int:
     from fancloud_vtk.algorithms.vdfc import e_max_of, flythrough
+    from fancloud_vtk.core.vdfc import Camera
 
     if (args.camera is None) == (args.flythrough is None):
         raise ValueError("give either --camera C with -o frame.png|front.vtp, or --flythrough DIR")
-    if args.camera is not None:
+    w, h = _parse_size(args.size)
+    camera = _parse_camera(args.camera, w / h) if args.camera is not None else None
+    if camera is not None:
+        Camera.of(camera)
         if args.output is None:
             raise ValueError("--camera needs -o frame.png or -o front.vtp")
         _check_output(args.output, (".png", ".vtp"))
-    w, h = _parse_size(args.size)
-    camera = _parse_camera(args.camera, w / h) if args.camera is not None else None
-    values = {**_params(args, FAN_PARAMS + tuple(x for x in VDFC_PARAMS if x.name != "aspect")),
-              "aspect": w / h}
+    values = check_params(FAN_PARAMS + VDFC_PARAMS, {
+        **_params(args, FAN_PARAMS + tuple(x for x in VDFC_PARAMS if x.name != "aspect")),
+        "aspect": w / h})
     t0 = time.perf_counter()
     vd, what = _load_forest(args, values)
     t1 = time.perf_counter()

@@ -215,7 +215,8 @@ class FanCloudViewDependentFilter(FanCloudAlgorithm):
             raise ValueError("FanCloudViewDependentFilter has no input and no forest "
                              "(SetInputData, SetInputConnection or SetForest)")
         values = self.parameters
-        key = (id(dataset), dataset.GetMTime(), tuple((k, values[k]) for k in _BUILD))
+        # the wrapper object differs between updates: the modification time names the data
+        key = (dataset.GetClassName(), dataset.GetMTime(), tuple((k, values[k]) for k in _BUILD))
         if self.forest is None or key != self._forest_key:
             self.forest, self.kind = build_forest(dataset, values,
                                                   lambda f, m: self._progress(0.9 * f, m))
@@ -379,8 +380,8 @@ def flythrough(forest: ViewDependentFanCloud, cameras, e_max: float, out_dir=Non
                          "triangles_per_point": round(s["triangles_per_point"], 4),
                          "front_ms": round(1e3 * s["seconds"], 3),
                          "render_ms": round(render_ms, 3)})
-            if progress is not None and progress((i + 1) / len(cams), "fly-through") is False:
-                break
+            if progress is not None and progress((i + 1) / len(cams), "fly-through") is True:
+                break  # cancelled (the core's convention: the callback returns True)
     finally:
         win.Finalize()
     if out_dir is not None:

@@ -1,0 +1,504 @@
+"""View-dependent fan clouds (paper section 8): forest, error bound, front, blocks."""
+
+import numpy as np
+import pytest
+
+from fancloud_vtk import (
+    FanCloudInputError,
+    ViewDependentFanCloud,
+    build_fans,
+    terrain_blocks,
+    terrain_fan_cloud,
+    terrain_path,
+)
+from fancloud_vtk.core import _vdfc_kernels as VK
+from fancloud_vtk.core.vdfc import Camera
+
+N = 64
+SPACING = 4.0 / N
+
+
+def _heights(n=N, seed=1):
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0, 4, n)
+    return 0.5 * np.add.outer(np.sin(1.3 * x), np.cos(x)) + 0.01 * rng.normal(size=(n, n))
+
+
+@pytest.fixture(scope="module")
+def terrain():
+    return terrain_fan_cloud(_heights(), spacing=SPACING)
+
+
+@pytest.fixture(scope="module")
+def forest(terrain):
+    return ViewDependentFanCloud.build(terrain)
+
+
+OBLIQUE = ((2.0, -3.0, 2.5), (2.0, 2.0, 0.0), (0.0, 0.0, 1.0), 50.0)
+ABOVE = ((2.0, 2.0, 12.0), (2.0, 2.0, 0.0), (0.0, 1.0, 0.0), 60.0)
+
+
+def _fresh(vd):
+    """A second forest with the same nodes (its own front state)."""
+    return ViewDependentFanCloud(
+        positions=vd.positions, normals=vd.normals, children=vd.children,
+        ring_offsets=vd.ring_offsets, ring=vd.ring, open=vd.open, error=vd.error,
+        bound=vd.bound, radius=vd.radius, merge=vd.merge, weights=vd.weights)
+
+
+def _tri_set(tri):
+    return {tuple(sorted(t)) for t in np.asarray(tri).tolist()}
+
+
+# -- the height field and its blocks ------------------------------------------------
+
+
+def test_terrain_fan_cloud_is_the_grid_triangulation():
+    z = _heights(12)
+    fc = terrain_fan_cloud(z, spacing=(0.5, 0.25), origin=(1.0, 2.0))
+    assert fc.n_points == 144
+    assert np.allclose(fc.points[13], [1.5, 2.25, z[1, 1]])
+    assert len(fc.triangles()) == 2 * 11 * 11
+    assert fc.fan_sizes.max() == 6 and fc.n_open == 4 * 11
+    assert (fc.normals[:, 2] > 0).all()
+    # every fan edge goes both ways (the fans agree: one triangulation)
+    edges = {(p, q) for p in range(fc.n_points) for q in fc.neighbours(p).tolist()}
+    assert all((q, p) in edges for p, q in edges)
+
+
+@pytest.mark.parametrize("bad, match", [
+    (np.zeros(5), "2-d grid"),
+    (np.zeros((1, 5)), "2-d grid"),
+    (np.array([[0.0, 1.0], [np.nan, 2.0]]), "NaN"),
+    (np.array([["a", "b"], ["c", "d"]]), "real numbers"),
+])
+def test_terrain_fan_cloud_rejects_bad_heights(bad, match):
+    with pytest.raises((FanCloudInputError, TypeError), match=match):
+        terrain_fan_cloud(bad)
+
+
+def test_terrain_fan_cloud_rejects_bad_spacing():
+    with pytest.raises(FanCloudInputError, match="spacing"):
+        terrain_fan_cloud(np.zeros((3, 3)), spacing=0)
+
+
+def test_terrain_blocks_share_their_boundary():
+    blocks = terrain_blocks((20, 30), (10, 10))
+    assert len(blocks) == 2 * 3
+    count = np.zeros(600, int)
+    for b in blocks:
+        count[b] += 1
+    assert (count >= 1).all()
+    ii, jj = np.divmod(np.arange(600), 30)
+    shared = (count >= 2).reshape(20, 30)
+    # the shared points are whole inner rows and columns: one row and two columns here
+    rows = np.flatnonzero(shared.all(axis=1))
+    cols = np.flatnonzero(shared.all(axis=0))
+    assert len(rows) == 1 and len(cols) == 2
+    expect = np.zeros((20, 30), bool)
+    expect[rows] = True
+    expect[:, cols] = True
+    assert np.array_equal(shared, expect)
+    assert count.max() == 4  # the corners of four blocks
+
+
+# -- the forest -----------------------------------------------------------------------
+
+
+def test_forest_structure(forest, terrain):
+    vd = forest
+    n = terrain.n_points
+    assert vd.n_leaves == n and len(vd.roots) == 1
+    assert vd.n_nodes == 2 * n - 1
+    inner = ~vd.is_leaf
+    assert (vd.children[inner] < np.arange(vd.n_nodes)[inner, None]).all()
+    assert (vd.error[vd.is_leaf] == 0).all() and (vd.error[inner] >= 0).all()
+    # the leaves keep the input fans; a node's leaves are its children's
+    assert np.array_equal(vd.ring[:terrain.offsets[-1]], terrain.ring)
+    r = int(vd.roots[0])
+    assert len(vd.leaves(r)) == n
+    c0, c1 = vd.children[r]
+    assert sorted(vd.leaves(r)) == sorted(np.concatenate([vd.leaves(c0), vd.leaves(c1)]))
+    # the bound is monotone and the spheres hold the descendants
+    par = vd.parent
+    has = par >= 0
+    assert (vd.bound[par[has]] >= vd.bound[has]).all()
+    for node in (r, c0, c1, int(np.flatnonzero(inner)[10])):
+        d = np.linalg.norm(vd.positions[vd.leaves(node)] - vd.positions[node], axis=1)
+        assert d.max() <= vd.radius[node]
+
+
+def test_entropy_merge_places_the_weighted_mean_and_half_edge_a_child(terrain):
+    vd = ViewDependentFanCloud.build(terrain, "half_edge")
+    inner = np.flatnonzero(~vd.is_leaf)
+    c = vd.children[inner]
+    on_child = np.isclose(vd.positions[inner], vd.positions[c[:, 1]]).all(axis=1)
+    assert on_child.all()
+    ve = ViewDependentFanCloud.build(terrain, "entropy")
+    inner = np.flatnonzero(~ve.is_leaf)
+    a, b = ve.positions[ve.children[inner, 0]], ve.positions[ve.children[inner, 1]]
+    r = ve.positions[inner]
+    # r on the segment between its children
+    t = np.einsum("ij,ij->i", r - a, b - a) / np.einsum("ij,ij->i", b - a, b - a)
+    assert ((t > -1e-9) & (t < 1 + 1e-9)).all()
+    assert np.allclose(a + t[:, None] * (b - a), r)
+
+
+def test_errors_vanish_on_a_plane_and_measure_the_fan_distance():
+    x = np.linspace(0, 1, 30)
+    plane = np.add.outer(0.3 * x, -0.2 * x)
+    vd = ViewDependentFanCloud.build(terrain_fan_cloud(plane, spacing=1 / 29))
+    assert vd.error.max() < 1e-9
+    # a paraboloid: the leaves lie off the coarse fans, by at most their spread
+    bowl = np.add.outer(x ** 2, x ** 2)
+    vb = ViewDependentFanCloud.build(terrain_fan_cloud(bowl, spacing=1 / 29))
+    root = int(vb.roots[0])
+    assert vb.error[root] > 0.01
+    assert vb.error[root] <= vb.radius[root]
+    # e(r) is at least the distance of each leaf from the nearest fan triangle
+    for node in np.flatnonzero(~vb.is_leaf)[::97]:
+        fan = vb.ring[vb.ring_offsets[node]:vb.ring_offsets[node + 1]]
+        tris = [(node, fan[j], fan[(j + 1) % len(fan)])
+                for j in range(len(fan) - (1 if vb.open[node] else 0))]
+        leaves = vb.positions[vb.leaves(node)]
+        best = np.full(len(leaves), np.inf)
+        for t in tris:
+            a, b, c = (vb.positions[i] for i in t)
+            for k, p in enumerate(leaves):
+                best[k] = min(best[k], VK._point_triangle(p[0], p[1], p[2], a, b, c))
+        assert vb.error[node] >= best.max() - 1e-12
+
+
+def test_forest_of_build_fans_and_of_a_mesh():
+    rng = np.random.default_rng(0)
+    p = rng.normal(size=(3000, 3))
+    p /= np.linalg.norm(p, axis=1)[:, None]
+    vd = ViewDependentFanCloud.build(build_fans(p))
+    assert vd.n_leaves == 3000 and len(vd.roots) >= 1
+    assert vd.n_nodes == 2 * 3000 - len(vd.roots)
+    cam = ((0.0, 0.0, 4.0), (0.0, 0.0, 0.0), (0.0, 1.0, 0.0), 40.0)
+    front = vd.front_arrays(cam, 1e-9)
+    # the whole sphere is in view: every point (the back side too)
+    assert front.n_points == 3000
+
+
+# -- the front -----------------------------------------------------------------------
+
+
+def _scratch(vd, cam, e_max, d_max):
+    """Refined and front nodes by the definition, top-down from the roots."""
+    eye, planes = Camera.of(cam).frustum()
+    d = np.maximum(np.linalg.norm(vd.positions - eye, axis=1) - vd.radius, 0.0)
+    vis = ((vd.positions @ planes[:, :3].T + planes[:, 3]) >= -vd.radius[:, None]).all(axis=1)
+    refine = ~vd.is_leaf & vis & (vd.bound > d * e_max / d_max)
+    return refine, vis, d
+
+
+@pytest.mark.parametrize("cam", [OBLIQUE, ABOVE])
+@pytest.mark.parametrize("e_max", [0.002, 0.02, 0.2])
+def test_front_error_bound_and_minimal(forest, cam, e_max):
+    vd = _fresh(forest)
+    d_max = 8.0
+    front = vd.front_arrays(cam, e_max, d_max)
+    refine, vis, d = _scratch(vd, cam, e_max, d_max)
+    ids = front.point_data["node_id"]
+    in_view = ids[:front.stats["in_view"]]
+    # every active inner node keeps its error: e(r) <= bound <= d(r) / d_max * e_max
+    inner = in_view[~vd.is_leaf[in_view]]
+    assert (vd.error[inner] <= d[inner] * e_max / d_max + 1e-15).all()
+    assert not refine[in_view].any()
+    # every refined node violates the bound (the front is minimal) and its parent is refined
+    refined = np.flatnonzero(vd._state == VK.REFINED)
+    assert refine[refined].all()
+    assert (vd.bound[refined] > d[refined] * e_max / d_max).all()
+    assert all(vd.parent[x] < 0 or refine[vd.parent[x]] for x in refined)
+    # the front nodes are exactly the children of refined nodes (or roots) not refined
+    front_nodes = np.flatnonzero(vd._state == VK.FRONT)
+    expect = np.flatnonzero(~refine & ((vd.parent < 0) | refine[np.maximum(vd.parent, 0)]))
+    assert np.array_equal(np.sort(front_nodes), expect)
+    # point arrays: the contract
+    assert set(front.point_data) >= {"node_id", "level", "error"}
+    assert np.array_equal(front.point_data["level"], vd.level[ids])
+    assert np.array_equal(front.point_data["error"], vd.error[ids])
+    assert np.allclose(front.points, vd.positions[ids])
+
+
+def test_no_active_point_outside_the_frustum(forest):
+    vd = _fresh(forest)
+    cam = ((1.0, -0.5, 1.0), (2.5, 2.5, 0.0), (0.0, 0.0, 1.0), 30.0)
+    front = vd.front_arrays(cam, 0.01, 8.0)
+    eye, planes = Camera.of(cam).frustum()
+    ids = front.point_data["node_id"]
+    n_in = front.stats["in_view"]
+    signed = (vd.positions[ids] @ planes[:, :3].T + planes[:, 3]).min(axis=1)
+    # in view: the node's sphere (which holds its original points) meets the frustum
+    assert (signed[:n_in] >= -vd.radius[ids[:n_in]]).all()
+    # the others stand in for fan neighbours just over the border: within one fan of a
+    # point in view (a front triangle joins them)
+    border = np.arange(n_in, len(ids))
+    assert len(border) > 0
+    tri = front.triangles
+    for b in border:
+        with_b = tri[(tri == b).any(axis=1)].ravel()
+        a = np.unique(with_b[with_b < n_in])
+        assert len(a), "a border point that no fan in view reaches"
+        reach = np.linalg.norm(vd.positions[ids[a]] - vd.positions[ids[b]], axis=1) \
+            + vd.radius[ids[a]]
+        assert signed[b] >= -reach.min() - 1e-12
+    # points well outside the view are never active
+    far_out = (vd.positions[:vd.n_leaves] @ planes[:, :3].T + planes[:, 3]).min(axis=1) < -0.5
+    assert far_out.sum() > 100
+    assert not np.isin(np.flatnonzero(far_out), ids).any()
+
+
+def test_density_grows_toward_the_viewer(forest):
+    vd = _fresh(forest)
+    cam = ((2.0, -1.0, 1.0), (2.0, 3.0, 0.0), (0.0, 0.0, 1.0), 50.0)
+    front = vd.front_arrays(cam, 0.05, 8.0)
+    eye, planes = Camera.of(cam).frustum()
+    ids = front.point_data["node_id"][:front.stats["in_view"]]
+    leaves = vd.positions[:vd.n_leaves]
+    seen = (leaves @ planes[:, :3].T + planes[:, 3]).min(axis=1) >= 0
+    dl = np.linalg.norm(leaves[seen] - eye, axis=1)
+    da = np.linalg.norm(vd.positions[ids] - eye, axis=1)
+    cuts = np.quantile(dl, [1 / 3, 2 / 3])
+    # active points per unit area = active points / original points in each distance band
+    near = (da < cuts[0]).sum() / (dl < cuts[0]).sum()
+    far = (da >= cuts[1]).sum() / (dl >= cuts[1]).sum()
+    assert near > 1.6 * far
+
+
+def test_tiny_e_max_gives_the_original_fans_and_huge_the_roots(forest, terrain):
+    vd = _fresh(forest)
+    front = vd.front_arrays(ABOVE, 1e-300)
+    assert front.n_points == terrain.n_points
+    ids = front.point_data["node_id"]
+    assert np.array_equal(np.sort(ids), np.arange(terrain.n_points))
+    assert np.allclose(front.points, terrain.points[ids])
+    assert _tri_set(ids[front.triangles]) == _tri_set(terrain.triangles())
+    assert front.stats["triangles_per_point"] == pytest.approx(
+        len(terrain.triangles()) / terrain.n_points)
+    top = vd.front_arrays(ABOVE, 1e300)
+    assert np.array_equal(top.point_data["node_id"], vd.roots)
+    assert (top.point_data["level"] == 0).all()
+
+
+def test_incremental_front_equals_the_front_from_scratch(forest):
+    vd = _fresh(forest)
+    other = _fresh(forest)
+    path = terrain_path(vd.bounds(), 25, height=0.3)
+    rng = np.random.default_rng(3)
+    for i, cam in enumerate(path):
+        e_max = 0.01 * (1 + 0.5 * np.sin(i))
+        inc = vd.front_arrays(cam, e_max, 8.0)
+        new = other.front_arrays(cam, e_max, 8.0, incremental=False)
+        assert np.array_equal(inc.point_data["node_id"], new.point_data["node_id"])
+        assert np.array_equal(inc.triangles, new.triangles)
+        assert inc.stats["visited"] <= new.stats["visited"] + len(new.points)
+    # a jump back to the start still matches
+    cam = path[0]
+    jitter = (tuple(np.add(cam[0], rng.normal(scale=0.01, size=3))), *cam[1:])
+    a = vd.front_arrays(jitter, 0.01, 8.0)
+    b = other.front_arrays(jitter, 0.01, 8.0, incremental=False)
+    assert np.array_equal(a.point_data["node_id"], b.point_data["node_id"])
+
+
+def test_triangles_per_point_about_two(forest):
+    vd = _fresh(forest)
+    for e_max in (0.003, 0.03):
+        front = vd.front_arrays(OBLIQUE, e_max, 8.0)
+        assert 1.6 < front.stats["triangles_per_point"] < 2.4
+        tri = front.triangles
+        assert tri.min() >= 0 and tri.max() < front.n_points
+        assert (tri[:, 0] != tri[:, 1]).all() and (tri[:, 1] != tri[:, 2]).all()
+        assert len(_tri_set(tri)) == len(tri)  # distinct
+
+
+# -- blocks ---------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def blocked(terrain):
+    blocks = terrain_blocks((N, N), (21, 21))
+    return ViewDependentFanCloud.build(terrain, blocks=blocks, workers=2), blocks
+
+
+def test_blocks_never_merge_their_shared_points_before_uniting(blocked, terrain):
+    vb, blocks = blocked
+    assert vb.n_leaves == terrain.n_points and len(vb.roots) == 1
+    count = np.zeros(terrain.n_points, int)
+    for b in blocks:
+        count[b] += 1
+    shared = np.flatnonzero(count >= 2)
+    home = np.full(terrain.n_points, -1)
+    for i, b in enumerate(blocks):
+        home[b[count[b] == 1]] = i
+    # a node with a shared point below it spans more than one block, or came after uniting
+    first_united = min(vb.parent[s] for s in shared)
+    for node in np.flatnonzero(~vb.is_leaf):
+        leaves = vb.leaves(node)
+        if node < first_united:
+            assert count[leaves].max() == 1, "a block merged a shared point"
+            assert len(np.unique(home[leaves])) == 1, "a block merged across its boundary"
+
+
+def test_blocks_agree_on_their_shared_points_for_random_cameras(blocked, terrain):
+    vb, blocks = blocked
+    vd = _fresh(vb)
+    count = np.zeros(terrain.n_points, int)
+    for b in blocks:
+        count[b] += 1
+    shared = np.flatnonzero(count >= 2)
+    rng = np.random.default_rng(7)
+    for _ in range(6):
+        eye = (rng.uniform(0, 4), rng.uniform(-4, 0), rng.uniform(1, 4))
+        cam = (eye, (rng.uniform(1, 3), rng.uniform(1, 3), 0.0), (0, 0, 1), 50.0)
+        front = vd.front_arrays(cam, rng.uniform(0.002, 0.05), 8.0)
+        ids = front.point_data["node_id"]
+        pos_in_front = {int(x): i for i, x in enumerate(ids)}
+        for b in blocks:
+            mine = np.isin(ids, b)
+            # seen from each block: a shared point is active (one point of the front for
+            # both blocks) or stands behind the same active ancestor
+            for s in shared[np.isin(shared, b)][:50]:
+                y = s
+                while y >= 0 and y not in pos_in_front:
+                    y = vd.parent[y]
+                if y == s:
+                    assert mine[pos_in_front[s]]
+
+
+def test_blocks_must_tile_the_data(terrain):
+    blocks = terrain_blocks((N, N), (32, 32))
+    with pytest.raises(ValueError, match="do not tile"):
+        ViewDependentFanCloud.build(terrain, blocks=blocks[:-1])
+    # blocks that touch without sharing their boundary points
+    ii, jj = np.divmod(np.arange(N * N), N)
+    left, right = np.flatnonzero(jj < 32), np.flatnonzero(jj >= 32)
+    with pytest.raises(ValueError, match="share"):
+        ViewDependentFanCloud.build(terrain, blocks=[left, right])
+    with pytest.raises(ValueError, match="outside"):
+        ViewDependentFanCloud.build(terrain, blocks=[np.arange(N * N + 1)])
+
+
+# -- extra objects, saving ------------------------------------------------------------
+
+
+def test_extra_object_joins_the_forest(forest):
+    rng = np.random.default_rng(0)
+    cube = rng.uniform(-1, 1, size=(1500, 3))
+    axis = np.argmax(np.abs(cube), axis=1)
+    cube[np.arange(1500), axis] = np.sign(cube[np.arange(1500), axis])
+    building = build_fans(cube * 0.2 + [2.0, 2.0, 1.0])
+    both = forest.add_object(building)
+    assert both.n_leaves == forest.n_leaves + 1500
+    assert len(both.roots) == len(forest.roots) + len(ViewDependentFanCloud.build(building).roots)
+    front = both.front_arrays(ABOVE, 1e-300)
+    ids = front.point_data["node_id"]
+    assert len(ids) == both.n_leaves
+    assert (ids >= forest.n_nodes).sum() == 1500
+    # the object's fans are among the triangles, renumbered
+    assert front.triangles.max() < front.n_points
+
+
+def test_save_and_load(forest, tmp_path):
+    path = tmp_path / "forest.npz"
+    forest.save(path)
+    back = ViewDependentFanCloud.load(path)
+    for name in ("positions", "children", "ring_offsets", "ring", "open", "error", "bound",
+                 "radius"):
+        assert np.array_equal(getattr(back, name), getattr(forest, name)), name
+    a = _fresh(forest).front_arrays(OBLIQUE, 0.01, 8.0)
+    b = back.front_arrays(OBLIQUE, 0.01, 8.0)
+    assert np.array_equal(a.point_data["node_id"], b.point_data["node_id"])
+    np.savez(tmp_path / "other.npz", x=np.zeros(3))
+    with pytest.raises(ValueError, match="not a view-dependent"):
+        ViewDependentFanCloud.load(tmp_path / "other.npz")
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    with pytest.raises(ValueError, match="cannot read"):
+        ViewDependentFanCloud.load(tmp_path / "junk.npz")
+
+
+# -- bad input -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("cam, match", [
+    (((0, 0, 5), (0, 0, 0), (0, 1, 0), 0.0), "view angle"),
+    (((0, 0, 5), (0, 0, 0), (0, 1, 0), 180.0), "view angle"),
+    (((0, 0, 5), (0, 0, 5), (0, 1, 0), 40.0), "looks at nothing"),
+    (((0, 0, 5), (0, 0, 0), (0, 0, 1), 40.0), "parallel"),
+    (((0, 0, np.nan), (0, 0, 0), (0, 1, 0), 40.0), "finite"),
+    (((0, 0, 5), (0, 0, 0), (0, 1, 0)), "camera tuple"),
+    (((0, 0, 5), (0, 0, 0), (0, 1, 0), 40.0, -1.0), "aspect"),
+])
+def test_bad_cameras(forest, cam, match):
+    with pytest.raises(ValueError, match=match):
+        forest.front_arrays(cam, 0.01)
+
+
+def test_camera_objects(forest):
+    from vtkmodules.vtkRenderingCore import vtkCamera
+
+    cam = vtkCamera()
+    cam.SetPosition(*OBLIQUE[0])
+    cam.SetFocalPoint(*OBLIQUE[1])
+    cam.SetViewUp(*OBLIQUE[2])
+    cam.SetViewAngle(OBLIQUE[3])
+    a = _fresh(forest).front_arrays(cam, 0.01, 8.0)
+    b = _fresh(forest).front_arrays(OBLIQUE, 0.01, 8.0)
+    assert np.array_equal(a.point_data["node_id"], b.point_data["node_id"])
+    cam.ParallelProjectionOn()
+    with pytest.raises(ValueError, match="parallel projection"):
+        forest.front_arrays(cam, 0.01)
+    with pytest.raises(TypeError, match="camera"):
+        forest.front_arrays(42, 0.01)
+
+
+@pytest.mark.parametrize("e_max", [0, -1.0, np.nan, np.inf])
+def test_bad_e_max(forest, e_max):
+    with pytest.raises(ValueError, match="e_max"):
+        forest.front_arrays(OBLIQUE, e_max)
+
+
+def test_bad_build_arguments(terrain):
+    with pytest.raises(ValueError, match="merge"):
+        ViewDependentFanCloud.build(terrain, "collapse")
+    with pytest.raises(ValueError, match="n_roots"):
+        ViewDependentFanCloud.build(terrain, n_roots=0)
+    with pytest.raises(ValueError, match="colour"):
+        ViewDependentFanCloud.build(terrain, weights=(1, 1, 0, 1))
+    with pytest.raises(TypeError):
+        ViewDependentFanCloud.build(np.zeros((10, 3)))
+
+
+def test_input_is_not_modified(terrain):
+    before = {k: getattr(terrain, k).copy() for k in ("points", "offsets", "ring", "normals")}
+    vd = ViewDependentFanCloud.build(terrain, blocks=terrain_blocks((N, N), (32, 32)))
+    vd.front_arrays(OBLIQUE, 0.01)
+    for k, v in before.items():
+        assert np.array_equal(getattr(terrain, k), v), k
+
+
+def test_colours_follow_the_merges():
+    z = _heights(30)
+    rgb = np.zeros((30, 30, 3), np.uint8)
+    rgb[:, :15] = (255, 0, 0)
+    rgb[:, 15:] = (0, 0, 255)
+    fc = terrain_fan_cloud(z, spacing=0.1, point_data={"RGB": rgb})
+    vd = ViewDependentFanCloud.build(fc)
+    front = vd.front_arrays(((1.5, -3, 3), (1.5, 1.5, 0), (0, 0, 1), 50.0), 0.05)
+    col = front.point_data["RGB"]
+    assert col.dtype == np.uint8 and col.shape == (front.n_points, 3)
+    # merged colours are mixes of red and blue
+    assert (col[:, 1] == 0).all() and (col.astype(int)[:, [0, 2]].sum(axis=1) >= 250).all()
+
+
+def test_terrain_path():
+    path = terrain_path((0, 10, 0, 4, 0, 1), 10)
+    eyes = np.array([c[0] for c in path])
+    assert len(path) == 10 and (np.diff(eyes[:, 0]) > 0).all()
+    assert (eyes[:, 2] > 1).all()
+    with pytest.raises(ValueError, match="n_frames"):
+        terrain_path((0, 10, 0, 4, 0, 1), 1)
+    with pytest.raises(ValueError, match="bounds"):
+        terrain_path((0, 10, 0), 5)
