@@ -9,7 +9,10 @@ reduction (section 5, Figure 9): the bunny reduced to 17.6% by distance only
 and with the shape weights, side by side; and the selective refinement of
 section 6 (Figure 11): reduced to 15%, smoothed, the head refined. Last the
 refinement beyond the resolution (section 7): the bunny reduced to 25% and
-refined back x4 by entropy, its inserted points marked.
+refined back x4 by entropy, its inserted points marked. And the view-dependent
+fan cloud (section 8, Figures 15 and 16) of matplotlib's Jacksboro fault DEM:
+its merge forest built in blocks, the front's points for one viewpoint seen
+from above, and the front shaded from that viewpoint.
 """
 
 from __future__ import annotations
@@ -185,6 +188,79 @@ def refinement_panel(fc, mesh, out_dir: str, quiet: bool) -> dict:
             "refine_png": png}
 
 
+#: the viewpoint of the terrain panel, as fractions of the terrain's extent and metres
+TERRAIN_VIEW = ((0.35, -0.02, 1200.0), (0.55, 0.45, 300.0))
+
+
+def terrain_panel(out_dir: str, quiet: bool) -> dict:
+    """Section 8 on the Jacksboro DEM: the forest in blocks; Figures 15 and 16."""
+    import numpy as np
+    import pyvista as pv
+    from vtkmodules.vtkCommonCore import vtkLogger
+
+    from fancloud_vtk.cli import _print_rows, _Progress
+    from fancloud_vtk.core.vdfc import ViewDependentFanCloud, terrain_blocks, terrain_fan_cloud
+    from fancloud_vtk.data import jacksboro_terrain
+
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)  # see render_fancloud
+    heights, spacing, _ = jacksboro_terrain()
+    fc = terrain_fan_cloud(heights, spacing)
+    progress = _Progress("terrain forest", quiet)
+    t0 = time.perf_counter()
+    vd = ViewDependentFanCloud.build(fc, blocks=terrain_blocks(heights.shape, (180, 210)),
+                                     progress=progress)
+    build_time = time.perf_counter() - t0
+    progress.close()
+    lo, hi = fc.points.min(axis=0), fc.points.max(axis=0)
+    (ex, ey, ez), (fx, fy, fz) = TERRAIN_VIEW
+    eye = (lo[0] + ex * (hi[0] - lo[0]), lo[1] + ey * (hi[1] - lo[1]), ez)
+    focal = (lo[0] + fx * (hi[0] - lo[0]), lo[1] + fy * (hi[1] - lo[1]), fz)
+    size = (900, 700)
+    camera = (eye, focal, (0.0, 0.0, 1.0), 50.0, size[0] / size[1])
+    e_max = 40.0  # metres at the range of sight
+    vd.front_arrays(camera, e_max)  # compile
+    vd.reset_front()
+    front = vd.front_arrays(camera, e_max)
+    poly = pv.wrap(front.to_vtk())
+    png = os.path.join(out_dir, "terrain_vdfc.png")
+    pl = pv.Plotter(off_screen=True, shape=(1, 2), window_size=(2 * size[0], size[1]),
+                    border=False)
+    pl.subplot(0, 0)
+    pl.add_text(f"Figure 15: the front's {front.n_points:,} points of {fc.n_points:,}, "
+                "from above (camera: black)", font_size=10)
+    pts = pv.PolyData(front.points)
+    pts["level"] = front.point_data["level"]
+    pl.add_mesh(pts, scalars="level", cmap="viridis", point_size=2, show_scalar_bar=False)
+    pl.add_mesh(pv.PolyData(np.array([eye])), color="black", point_size=14,
+                render_points_as_spheres=True)
+    pl.add_mesh(pv.Line(eye, focal), color="black", line_width=3)
+    pl.camera_position = "xy"
+    pl.subplot(0, 1)
+    pl.add_text(f"Figure 16: the front shaded from the viewpoint "
+                f"({front.stats['triangles']:,} triangles)", font_size=10)
+    pl.add_mesh(poly, color="#c8b890", smooth_shading=True, specular=0.2)
+    pl.camera_position = [eye, focal, (0.0, 0.0, 1.0)]
+    pl.camera.view_angle = 50.0
+    pl.screenshot(png)
+    pl.close()
+    s = front.stats
+    rows = [("terrain", f"{heights.shape[0]} x {heights.shape[1]} = {fc.n_points:,} points, "
+                        f"spacing {spacing[0]:.1f} x {spacing[1]:.1f} m"),
+            ("merge forest", f"{vd.n_nodes:,} nodes, built in {build_time:.2f} s "
+                             "(4 blocks sharing their boundary)"),
+            ("front (e_max 40 m)", f"{s['active']:,} points, {s['triangles']:,} triangles "
+                                   f"({s['triangles_per_point']:.2f} per point)"),
+            ("front update", f"{1e3 * s['seconds']:.1f} ms from the roots"),
+            ("picture (Figures 15, 16)", png)]
+    print()
+    print("view-dependent fan cloud (paper section 8): the Jacksboro fault DEM")
+    _print_rows(rows)
+    return {"points": fc.n_points, "nodes": vd.n_nodes, "build_time": build_time,
+            "active": s["active"], "triangles": s["triangles"],
+            "triangles_per_point": s["triangles_per_point"], "front_seconds": s["seconds"],
+            "terrain_png": png}
+
+
 def run_demo(out_dir: str = "fancloud_demo", quiet: bool = False) -> dict:
     """Run the demo; return the summary (also printed)."""
     from fancloud_vtk.algorithms.convert import mesh_to_vtk, write_mesh
@@ -227,6 +303,8 @@ def run_demo(out_dir: str = "fancloud_demo", quiet: bool = False) -> dict:
     mesh_stats = {k: v for k, v in mesh.stats.items() if k != "timings"}
     reduction = reduction_panel(fc, out_dir, quiet)
     refinement = refinement_panel(fc, mesh, out_dir, quiet)
+    terrain = terrain_panel(out_dir, quiet)
     return {**fc.summary(), "time": elapsed, "vtp": vtp, "png": png,
             "mesh": mesh_stats, "mesh_time": mesh_time, "mesh_ply": mesh_ply,
-            "mesh_png": mesh_png, "reduction": reduction, "refinement": refinement}
+            "mesh_png": mesh_png, "reduction": reduction, "refinement": refinement,
+            "terrain": terrain}

@@ -870,7 +870,7 @@ def _extras(mring, aidx, na):
     return extra[:ne].copy()
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring):
     """Distinct triangles of the active fans; returns (triangles, extra points).
 
@@ -880,6 +880,8 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
     *extra* (index ``len(active) + j``, its ``aidx`` set here; it draws no fan
     of its own), so the front has no ragged edge at the border of the view.
     A triangle is written once, by the smallest of its points whose fan holds it.
+    Serial on purpose: a frame's work is a few milliseconds, where waking
+    threads on a loaded machine costs more than it saves.
     """
     na = active.shape[0]
     moff = np.zeros(na + 1, np.int64)
@@ -887,14 +889,14 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
         x = active[i]
         moff[i + 1] = moff[i] + ring_off[x + 1] - ring_off[x]
     mring = np.empty(moff[na], np.int64)
-    for i in prange(na):
+    for i in range(na):
         x = active[i]
         for j in range(ring_off[x + 1] - ring_off[x]):
             mring[moff[i] + j] = _representative(pos, child, parent, state, x,
                                                  ring[ring_off[x] + j])
     extra = _extras(mring, aidx, na)
     ne = extra.shape[0]
-    for a in prange(mring.shape[0]):
+    for a in range(mring.shape[0]):
         y = mring[a]
         mring[a] = aidx[y] if y >= 0 else -1
     # extras hold no fan: empty mapped rings after the active ones
@@ -902,47 +904,35 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
     moff2[:na + 1] = moff
     for e in range(ne):
         moff2[na + 1 + e] = moff[na]
-    closed = np.empty(na + ne, np.bool_)
+    closed = np.zeros(na + ne, np.bool_)
     for i in range(na):
         closed[i] = not is_open[active[i]]
-    for e in range(ne):
-        closed[na + e] = False
-    count = np.zeros(na + 1, np.int64)
-    for phase in range(2):
-        if phase == 1:
-            for i in range(na):
-                count[i + 1] += count[i]
-            tri = np.empty((count[na], 3), np.int64)
-        else:
-            tri = np.empty((0, 3), np.int64)
-        for i in prange(na):
-            k = moff2[i + 1] - moff2[i]
-            last = k if closed[i] else k - 1
-            c = 0
-            w0 = count[i]
-            for j in range(last):
-                s = mring[moff2[i] + j]
-                t = mring[moff2[i] + (j + 1) % k]
-                if s < 0 or t < 0 or s == t or s == i or t == i:
-                    continue
-                if (s < i and _has_pair(mring, moff2, s, i, t, closed)) or \
-                        (t < i and _has_pair(mring, moff2, t, i, s, closed)):
-                    continue
-                # the same triangle twice in this fan (a fan folding over stand-ins)
-                dup = False
-                for jj in range(j):
-                    s2 = mring[moff2[i] + jj]
-                    t2 = mring[moff2[i] + (jj + 1) % k]
-                    if (s2 == s and t2 == t) or (s2 == t and t2 == s):
-                        dup = True
-                        break
-                if dup:
-                    continue
-                if phase == 1:
-                    tri[w0 + c, 0] = i
-                    tri[w0 + c, 1] = s
-                    tri[w0 + c, 2] = t
-                c += 1
-            if phase == 0:
-                count[i + 1] = c
-    return tri, extra
+    tri = np.empty((moff[na], 3), np.int64)
+    c = 0
+    for i in range(na):
+        k = moff2[i + 1] - moff2[i]
+        last = k if closed[i] else k - 1
+        base = moff2[i]
+        for j in range(last):
+            s = mring[base + j]
+            t = mring[base + (j + 1) % k]
+            if s < 0 or t < 0 or s == t or s == i or t == i:
+                continue
+            if (s < i and _has_pair(mring, moff2, s, i, t, closed)) or \
+                    (t < i and _has_pair(mring, moff2, t, i, s, closed)):
+                continue
+            # the same triangle twice in this fan (a fan folding over stand-ins)
+            dup = False
+            for jj in range(j):
+                s2 = mring[base + jj]
+                t2 = mring[base + (jj + 1) % k]
+                if (s2 == s and t2 == t) or (s2 == t and t2 == s):
+                    dup = True
+                    break
+            if dup:
+                continue
+            tri[c, 0] = i
+            tri[c, 1] = s
+            tri[c, 2] = t
+            c += 1
+    return tri[:c].copy(), extra
