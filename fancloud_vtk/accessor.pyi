@@ -25,6 +25,21 @@ import pyvista as pv
 
 from fancloud_vtk.core.model import FanCloud
 from fancloud_vtk.core.reduction import Hierarchy
+from fancloud_vtk.core.vdfc import ViewDependentFanCloud
+
+class PyVistaViewDependentFanCloud(ViewDependentFanCloud):
+    values: dict
+    def front(
+        self,
+        camera,
+        e_max: float | None = None,
+        d_max: float | None = None,
+        *,
+        aspect: float | None = None,
+        incremental: bool = True,
+    ) -> pv.PolyData: ...
+    def filter(self): ...
+    def add_to(self, plotter, **mesh_kwargs): ...
 
 class FanCloudAccessor:
     """Fan cloud verbs on any PyVista dataset: ``dataset.fancloud.<verb>()``."""
@@ -125,6 +140,28 @@ class FanCloudAccessor:
     ) -> pv.PolyData:
         """Refine beyond the input resolution by entropy (paper section 7); a new PolyData."""
     # END GENERATED refine
+    # BEGIN GENERATED vdfc (scripts/gen_docs.py from FAN_PARAMS + VDFC_PARAMS)
+    def vdfc(
+        self,
+        *,
+        k: int = 6,
+        max_angle: float = 90.0,
+        max_replacements: int = 42,
+        rule: Literal["cover", "paper"] = "cover",
+        rotate_sharp_edges: bool = True,
+        orient: bool = True,
+        e_max: float = 0.0,
+        d_max: float = 0.0,
+        merge: Literal["entropy", "half_edge"] = "entropy",
+        weights: tuple[float, float, float, float] = (1.0, 1.0, 0.0, 0.0),
+        color_array: str = "",
+        n_roots: int = 1,
+        block_size: int = 0,
+        aspect: float = 0.0,
+        progress_bar: bool = False,
+    ) -> PyVistaViewDependentFanCloud:
+        """The merge forest of the view-dependent fan cloud (paper section 8)."""
+    # END GENERATED vdfc
     def hierarchy(
         self,
         n_points: int | None = None,

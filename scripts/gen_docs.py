@@ -38,6 +38,7 @@ from fancloud_vtk.params import (  # noqa: E402
     REDUCE_PARAMS,
     REFINE_PARAMS,
     SELECTIVE_PARAMS,
+    VDFC_PARAMS,
     Param,
     markdown_table,
 )
@@ -67,6 +68,11 @@ VERBS = {
         FAN_PARAMS + REFINE_PARAMS,
         "Refine beyond the input resolution by entropy (paper section 7); a new PolyData.",
     ),
+    "vdfc": (
+        FAN_PARAMS + VDFC_PARAMS,
+        "The merge forest of the view-dependent fan cloud (paper section 8).",
+        "PyVistaViewDependentFanCloud",
+    ),
 }
 
 #: Tables rendered into docs/api.md between ``BEGIN <NAME>`` / ``END <NAME>`` markers.
@@ -77,10 +83,12 @@ TABLES = {
     "REDUCE_PARAMS": REDUCE_PARAMS,
     "SELECTIVE_PARAMS": SELECTIVE_PARAMS,
     "REFINE_PARAMS": REFINE_PARAMS,
+    "VDFC_PARAMS": VDFC_PARAMS,
 }
 
 
-def stub_signature(table: tuple[Param, ...], name: str = "fans", doc: str | None = None) -> str:
+def stub_signature(table: tuple[Param, ...], name: str = "fans", doc: str | None = None,
+                   returns: str = "pv.PolyData") -> str:
     """The accessor method's signature (keyword-only, from the table) as stub lines."""
     types = {"int": "int", "float": "float", "bool": "bool", "str": "str"}
     doc = VERBS[name][1] if doc is None else doc
@@ -101,7 +109,7 @@ def stub_signature(table: tuple[Param, ...], name: str = "fans", doc: str | None
         lines.append(f"        {p.name}: {kind} = {default},")
     lines += [
         "        progress_bar: bool = False,",
-        "    ) -> pv.PolyData:",
+        f"    ) -> {returns}:",
         f'        """{doc}"""',
     ]
     return "\n".join(lines)
@@ -120,9 +128,9 @@ def targets() -> list[tuple[Path, str, str, str]]:
     """Every generated block: (file, begin marker, end marker, content)."""
     out = [(API_MD, f"BEGIN {name}", f"END {name}", markdown_table(table))
            for name, table in TABLES.items()]
-    for verb, (table, doc) in VERBS.items():
+    for verb, (table, doc, *returns) in VERBS.items():
         out.append((STUB, f"BEGIN GENERATED {verb}", f"END GENERATED {verb}",
-                    stub_signature(table, verb, doc)))
+                    stub_signature(table, verb, doc, *returns)))
     return out
 
 
