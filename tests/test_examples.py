@@ -11,11 +11,13 @@ MODULES = [
     "fancloud_vtk.core.entropy",
     "fancloud_vtk.core.reduction",
     "fancloud_vtk.core.refinement",
+    "fancloud_vtk.core.vdfc",
     "fancloud_vtk.algorithms.fans",
     "fancloud_vtk.algorithms.mesh",
     "fancloud_vtk.algorithms.entropy",
     "fancloud_vtk.algorithms.reduce",
     "fancloud_vtk.algorithms.refine",
+    "fancloud_vtk.algorithms.vdfc",
     "fancloud_vtk.accessor",
 ]
 
@@ -25,5 +27,5 @@ def test_docstring_examples(name):
     module = importlib.import_module(name)
     result = doctest.testmod(module, optionflags=doctest.NORMALIZE_WHITESPACE, verbose=False)
     assert result.failed == 0, f"{result.failed} docstring example(s) of {name} failed"
-    if name.endswith(("reduction", "entropy", "reduce", "refinement", "refine")):
+    if name.endswith(("reduction", "entropy", "reduce", "refinement", "refine", "vdfc")):
         assert result.attempted > 0, f"{name} has no runnable example"
