@@ -35,6 +35,16 @@
     printed), ``refine.json``, ``refine_cycles.png`` and
     ``refine_cycles_error.png``.
 
+``fancloud bench vdfc [--part build frames peers] [--n 1000] [--frames 300] [--e-max 20]``
+    View-dependent fan clouds (:mod:`fancloud_vtk.bench_vdfc`) on the
+    Jacksboro DEM (1000 x 1000: a million points): the forest's build time
+    against ``build_fans``; a fly-through's front update time, active points
+    and triangles per point; the screen-space error of the fronts against
+    ``vtkGreedyTerrainDecimation`` and fast-simplification at the same
+    triangle count. Writes ``vdfc.md`` (also printed), ``vdfc.json``,
+    ``vdfc_frames.csv``, ``vdfc_frames.png``, ``frames/frame_*.png`` and
+    ``vdfc_peers.png``.
+
 Everything in the tables is measured in the run; only the targets (the
 issue's figures) are constants. Measurements that need a fresh process
 (first call, memory, thread counts, the peers) run in subprocesses of the
@@ -1231,6 +1241,10 @@ def make_parser() -> argparse.ArgumentParser:
     from fancloud_vtk.bench_refine import add_parser as add_refine_parser
 
     add_refine_parser(sub)
+
+    from fancloud_vtk.bench_vdfc import add_parser as add_vdfc_parser
+
+    add_vdfc_parser(sub)
     return parser
 
 

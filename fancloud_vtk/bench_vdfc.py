@@ -1,0 +1,826 @@
+"""``fancloud bench vdfc``: view-dependent fan clouds (paper section 8) on a terrain.
+
+``fancloud bench vdfc [--part build frames peers] [--n 1000] [--repeat 2] [--frames 300]
+[--e-max 20] [--out DIR] [--quick]``
+
+The data: the Jacksboro fault DEM shipped with matplotlib, resampled to an
+``--n`` x ``--n`` grid (:func:`fancloud_vtk.data.jacksboro_terrain`; 1000:
+a million points, about 30 m apart, heights in metres), as a fan cloud
+(:func:`~fancloud_vtk.terrain_fan_cloud`). Every call is made once on a
+40 x 40 terrain first (numba compiled), then timed in this process.
+
+build
+    Best of ``--repeat``: ``build_fans(fc.points)`` against
+    ``ViewDependentFanCloud.build(fc)``, without and with blocks
+    (``terrain_blocks(shape, (n // 2, n // 2))``: four blocks built in
+    parallel threads). The target: the forest (with blocks) builds in at
+    most 3 times the time of the fans.
+frames
+    A smooth fly-through (:func:`~fancloud_vtk.terrain_path`, ``--frames``
+    cameras) with ``e_max = --e-max`` and ``d_max`` the default range of
+    sight of the first camera, kept for the path: per frame the front
+    update time (``Front.stats["seconds"]``, incremental from the previous
+    frame), the active points and the triangles per active point. Then the
+    same path again with the update's phases timed (a copy of
+    ``front_arrays``' body, a diagnostic), and ``flythrough`` offscreen on
+    ``--render-frames`` cameras spread over the path (PNG frames in
+    ``DIR/frames``).
+peers
+    At the front's mean triangle count T of the fly-through: the whole
+    terrain reduced to T triangles by VTK's ``vtkGreedyTerrainDecimation``
+    and by ``fast_simplification.simplify`` (on the grid's triangles).
+    For ``--cameras`` cameras along the path, the screen-space error of
+    the three surfaces drawn (ours: the front's triangles for that camera;
+    theirs: the reduced mesh), all measured by the same code: for the
+    original points in the view frustum (at most ``--samples`` of them), the
+    vertical distance to the drawn surface (its triangles rasterised onto
+    the grid, linear interpolation) divided by the point's distance to the
+    eye. Points under no triangle are counted and left out.
+
+Writes ``vdfc.md`` (also printed), ``vdfc.json``, ``vdfc_frames.csv``,
+``vdfc_frames.png`` (update time and active points per frame),
+``frames/frame_*.png`` and ``vdfc_peers.png`` (the three surfaces from one
+camera).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import gc
+import os
+import time
+
+import numba
+import numpy as np
+from numba import njit
+
+from fancloud_vtk.bench import (
+    _log,
+    _num,
+    _ok,
+    _row,
+    _timed,
+    machine_info,
+    markdown,
+    table_lines,
+    write_outputs,
+)
+
+#: The issue's targets for ``bench vdfc``.
+TARGET_BUILD_RATIO = 3.0  #: forest build (blocks) / build_fans
+TARGET_MEAN_MS = 10.0  #: mean front update per frame, ms
+TARGET_MAX_MS = 50.0  #: slowest front update, ms
+TARGET_TPP = 2.0  #: triangles per active point
+TPP_TOLERANCE = 0.1  #: |mean triangles per point - 2| allowed
+TARGET_SSE_RATIO = 1.0  #: our screen-space error / the best peer's, at the same triangles
+
+PARTS = ("build", "frames", "peers")
+DEFAULT_N, QUICK_N = 1000, 200
+DEFAULT_FRAMES, QUICK_FRAMES = 300, 30
+#: e_max in metres at d_max (the range of sight, about 35.6 km on the DEM):
+#: on the 1000 x 1000 grid the front holds about 3% of the points on average.
+DEFAULT_E_MAX = 20.0
+WARM_SIDE = 40
+RENDER_SIZE = (640, 480)
+
+PEER_COLUMNS = ("surface", "points", "triangles", "triangles in view (mean)", "time (s)",
+                "SSE max", "SSE p99", "SSE mean", "SSE max, worst layer", "points in view",
+                "under no triangle")
+SURFACES = ("ours (front)", "vtkGreedyTerrainDecimation", "fast-simplification")
+
+
+def terrain(side: int):
+    """(heights, (dx, dy), origin, label) of the Jacksboro DEM on a side x side grid."""
+    from fancloud_vtk.data import jacksboro_terrain
+
+    heights, spacing, origin = jacksboro_terrain((side, side))
+    label = (f"Jacksboro DEM {side} x {side} ({side * side:,} points, "
+             f"{spacing[0]:.1f} x {spacing[1]:.1f} m)")
+    return heights, spacing, origin, label
+
+
+def grid_triangles(ny: int, nx: int) -> np.ndarray:
+    """The triangles of the grid of :func:`terrain_fan_cloud` (diagonals (i, j)-(i+1, j+1))."""
+    i, j = np.meshgrid(np.arange(ny - 1), np.arange(nx - 1), indexing="ij")
+    a = (i * nx + j).ravel()
+    b, c, d = a + 1, a + nx + 1, a + nx
+    return np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])]).astype(
+        np.int64)
+
+
+def _warm(quiet: bool) -> None:
+    """Every call once on a small terrain: numba compiles before anything is timed."""
+    from fancloud_vtk import (
+        ViewDependentFanCloud,
+        build_fans,
+        terrain_blocks,
+        terrain_fan_cloud,
+        terrain_path,
+    )
+
+    _log(quiet, f"warm-up on a {WARM_SIDE} x {WARM_SIDE} terrain")
+    h, sp, org, _ = terrain(WARM_SIDE)
+    fc = terrain_fan_cloud(h, spacing=sp, origin=org)
+    build_fans(fc.points)
+    ViewDependentFanCloud.build(fc, blocks=terrain_blocks(h.shape, (WARM_SIDE // 2,) * 2))
+    vd = ViewDependentFanCloud.build(fc)
+    for cam in terrain_path(vd.bounds(), 4):
+        f = vd.front_arrays(cam, 5.0)
+    _surface_errors(f.points, f.triangles, h, sp, org, np.ones(h.shape, np.bool_))
+
+
+# -- build ---------------------------------------------------------------------------------
+
+
+def measure_build(fc, shape, repeat: int, quiet: bool) -> dict:
+    """Best times of build_fans(points) and of the forest, without and with blocks."""
+    from fancloud_vtk import ViewDependentFanCloud, build_fans, terrain_blocks
+
+    side = shape[0]
+    blocks = terrain_blocks(shape, (max(1, side // 2), max(1, shape[1] // 2)))
+    fans, plain, blocked = [], [], []
+    for i in range(repeat):
+        _log(quiet, f"  build: run {i + 1} of {repeat}")
+        fans.append(_timed(build_fans, fc.points))
+        plain.append(_timed(ViewDependentFanCloud.build, fc))
+        blocked.append(_timed(ViewDependentFanCloud.build, fc, blocks=blocks))
+    return {"n": fc.n_points, "blocks": len(blocks), "block_shape": [side // 2, shape[1] // 2],
+            "build_fans_times": fans, "forest_times": plain, "forest_blocks_times": blocked,
+            "build_fans": min(fans), "forest": min(plain), "forest_blocks": min(blocked),
+            "ratio": min(plain) / min(fans), "ratio_blocks": min(blocked) / min(fans)}
+
+
+def build_rows(b: dict, data: str, repeat: int) -> list[dict]:
+    best = f"best of {repeat}, warm (same process)"
+
+    def runs(key):
+        return "runs " + ", ".join(_num(t) for t in b[f"{key}_times"]) + " s"
+
+    blocks = f"blocks=terrain_blocks(shape, ({b['block_shape'][0]}, {b['block_shape'][1]})): " \
+             f"{b['blocks']} blocks in threads"
+    return [
+        _row("build: build_fans", data, f"build_fans(fc.points), k=6; {best}; "
+             f"{runs('build_fans')}", _num(b["build_fans"]), "s"),
+        _row("build: forest, no blocks", data, f"ViewDependentFanCloud.build(fc); {best}; "
+             f"{runs('forest')}", _num(b["forest"]), "s"),
+        _row("build: forest, blocks", data, f"ViewDependentFanCloud.build(fc, {blocks}); "
+             f"{best}; {runs('forest_blocks')}", _num(b["forest_blocks"]), "s"),
+        _row("build: ratio forest (blocks) / build_fans", data,
+             "best times above; the compared ratio: the terrain's forest with blocks",
+             f"{b['ratio_blocks']:.2f}", "x", f"<= {TARGET_BUILD_RATIO:g}",
+             _ok(b["ratio_blocks"] <= TARGET_BUILD_RATIO)),
+        _row("build: ratio forest (no blocks) / build_fans", data,
+             "best times above; for information", f"{b['ratio']:.2f}", "x"),
+    ]
+
+
+# -- frames --------------------------------------------------------------------------------
+
+
+def _front_phases(vd, cam, e_max: float, d_max: float) -> dict:
+    """One incremental front update with its phases timed: a copy of ``front_arrays``' body.
+
+    A diagnostic only: it reads the forest's internals, so a change of the
+    core may break it (the caller then reports no phases).
+    """
+    from fancloud_vtk.core import _vdfc_kernels as VK
+    from fancloud_vtk.core.vdfc import Camera
+
+    c = Camera.of(cam)
+    t = [time.perf_counter()]
+    eye, planes = c.frustum()
+    t.append(time.perf_counter())
+    front, _, visited = VK.update_front(vd.positions, vd.radius, vd.bound, vd.children,
+                                        vd.parent, vd._state, vd._front, len(vd._front), planes,
+                                        eye, e_max / d_max)
+    vd._front = front
+    t.append(time.perf_counter())
+    active = VK.active_nodes(vd.positions, vd.radius, planes, front)
+    vd._aidx[active] = np.arange(len(active))
+    t.append(time.perf_counter())
+    tri, extra = VK.front_triangles(vd.positions, vd.children, vd.parent, vd._state, active,
+                                    vd._aidx, vd.open, vd.ring_offsets, vd.ring)
+    t.append(time.perf_counter())
+    active = np.concatenate([active, extra])
+    vd._aidx[active] = -1
+    t.append(time.perf_counter())
+    names = ("frustum", "update_front", "active_nodes", "front_triangles", "bookkeeping")
+    out = {k: t[i + 1] - t[i] for i, k in enumerate(names)}
+    out["total"] = t[-1] - t[0]
+    out["visited"] = int(visited)
+    out["active"] = len(active)
+    out["triangles"] = len(tri)
+    return out
+
+
+def run_frames(vd, cams, e_max: float, d_max: float, quiet: bool) -> dict:
+    """The fly-through: per frame the front update time, active points, triangles."""
+    vd.reset_front()
+    gc.collect()
+    frames = []
+    for i, cam in enumerate(cams):
+        s = vd.front_arrays(cam, e_max, d_max).stats
+        frames.append({"frame": i, "ms": 1e3 * s["seconds"], "active": s["active"],
+                       "in_view": s["in_view"], "border": s["border"],
+                       "triangles": s["triangles"], "tpp": s["triangles_per_point"],
+                       "front": s["front"], "visited": s["visited"]})
+    _log(quiet, f"  frames: {len(frames)} fronts, mean "
+         f"{np.mean([f['ms'] for f in frames[1:] or frames]):.1f} ms")
+    threads = numba.get_num_threads()
+    phases = {"threads": threads}
+    for key, n_threads in (("default", threads), ("one_thread", 1)):
+        try:
+            numba.set_num_threads(n_threads)
+            vd.reset_front()
+            gc.collect()
+            rows = [_front_phases(vd, cam, e_max, d_max) for cam in cams]
+        except Exception as exc:  # the internals changed: no breakdown
+            phases[key] = {"error": f"{type(exc).__name__}: {exc}"}
+            continue
+        finally:
+            numba.set_num_threads(threads)
+        rest = rows[1:] or rows
+        ph = {k: 1e3 * float(np.mean([r[k] for r in rest]))
+              for k in ("frustum", "update_front", "active_nodes", "front_triangles",
+                        "bookkeeping", "total")}
+        ph["max_total"] = 1e3 * float(max(r["total"] for r in rest))
+        ph["matches"] = all(r["active"] == f["active"] and r["triangles"] == f["triangles"]
+                            for r, f in zip(rows, frames, strict=True))
+        phases[key] = ph
+    vd.reset_front()
+    return {"frames": frames, "phases": phases, "e_max": e_max, "d_max": d_max}
+
+
+def frame_summary(fr: dict, n: int) -> dict:
+    frames = fr["frames"]
+    rest = frames[1:] or frames
+    ms = np.array([f["ms"] for f in rest])
+    act = np.array([f["active"] for f in frames])
+    tpp = np.array([f["tpp"] for f in frames])
+    tri = np.array([f["triangles"] for f in frames])
+    return {"mean_ms": float(ms.mean()), "max_ms": float(ms.max()),
+            "p95_ms": float(np.percentile(ms, 95)), "median_ms": float(np.median(ms)),
+            "first_ms": frames[0]["ms"], "active_mean": float(act.mean()),
+            "active_min": int(act.min()), "active_max": int(act.max()),
+            "active_pct": 100.0 * float(act.mean()) / n, "tpp_mean": float(tpp.mean()),
+            "tpp_min": float(tpp.min()), "tpp_max": float(tpp.max()),
+            "triangles_mean": float(tri.mean()),
+            "visited_mean": float(np.mean([f["visited"] for f in rest]))}
+
+
+def _one_thread_rows(fr: dict, data: str, path: str) -> list[dict]:
+    ph = fr["phases"].get("one_thread")
+    if not ph or "error" in ph:
+        return []
+    return [_row("frames: front update, mean, 1 numba thread", data,
+                 f"{path}; the path again with numba.set_num_threads(1), the update's body "
+                 f"copied and timed by phase (see the notes); max {ph['max_total']:.2f} ms; "
+                 "for information", f"{ph['total']:.2f}", "ms")]
+
+
+def frame_rows(fr: dict, s: dict, data: str, render: dict | None) -> list[dict]:
+    nf = len(fr["frames"])
+    path = (f"terrain_path(bounds, {nf}), e_max {fr['e_max']:g} m at d_max "
+            f"{fr['d_max']:,.0f} m (refine while e(r) > e_max d(r) / d_max)")
+    upd = f"{path}; Front.stats['seconds'] of frames 2..{nf} (incremental)"
+    rows = [
+        _row("frames: front update, mean", data,
+             f"{upd}; median {s['median_ms']:.1f}, p95 {s['p95_ms']:.1f} ms; "
+             f"{s['visited_mean']:,.0f} nodes visited per update",
+             f"{s['mean_ms']:.2f}", "ms", f"<= {TARGET_MEAN_MS:g}",
+             _ok(s["mean_ms"] <= TARGET_MEAN_MS)),
+        _row("frames: front update, max", data, upd, f"{s['max_ms']:.2f}", "ms",
+             f"<= {TARGET_MAX_MS:g}", _ok(s["max_ms"] <= TARGET_MAX_MS)),
+        *_one_thread_rows(fr, data, path),
+        _row("frames: first front (from the roots)", data, f"{path}; frame 1",
+             f"{s['first_ms']:.2f}", "ms"),
+        _row("frames: active points, mean", data,
+             f"{path}; min {s['active_min']:,}, max {s['active_max']:,}; "
+             f"{s['active_pct']:.2f}% of the points on average", f"{s['active_mean']:,.0f}",
+             "points"),
+        _row("frames: triangles per active point, mean", data,
+             f"{path}; distinct front triangles / active points (in view and border); "
+             f"min {s['tpp_min']:.3f}, max {s['tpp_max']:.3f} over {nf} frames",
+             f"{s['tpp_mean']:.3f}", "", f"{TARGET_TPP:g} +- {TPP_TOLERANCE:g}",
+             _ok(abs(s["tpp_mean"] - TARGET_TPP) <= TPP_TOLERANCE)),
+    ]
+    if render is not None and render.get("rows"):
+        r = render["rows"]
+        w, h = render["size"]
+        rows.append(_row("render: fly-through frame, mean", data,
+                         f"fancloud_vtk.algorithms.vdfc.flythrough, {len(r)} cameras spread "
+                         f"over the path, {w} x {h} offscreen VTK; max "
+                         f"{max(x['render_ms'] for x in r):.1f} ms; front update (not "
+                         f"incremental: the cameras are far apart) mean "
+                         f"{np.mean([x['front_ms'] for x in r]):.1f} ms",
+                         f"{np.mean([x['render_ms'] for x in r]):.1f}", "ms"))
+    return rows
+
+
+def phase_notes(phases: dict, n_frames: int) -> list[str]:
+    """One note per phase pass (numba's default threads, then one thread)."""
+    notes = []
+    for key, label in (("default", f"{phases['threads']} numba threads (the default)"),
+                       ("one_thread", "1 numba thread (numba.set_num_threads(1))")):
+        ph = phases.get(key)
+        if ph is None:
+            continue
+        if "error" in ph:
+            notes.append(f"front update phases, {label}: not measured ({ph['error']})")
+            continue
+        notes.append(
+            f"front update phases, {label}, the path again (a copy of front_arrays' body, "
+            f"mean ms over frames 2..{n_frames}): update_front {ph['update_front']:.2f}, "
+            f"active_nodes {ph['active_nodes']:.2f}, front_triangles "
+            f"{ph['front_triangles']:.2f}, frustum and bookkeeping "
+            f"{ph['frustum'] + ph['bookkeeping']:.2f}; total {ph['total']:.2f} (max "
+            f"{ph['max_total']:.2f})" + ("" if ph["matches"] else
+                                         "; its fronts differ from front_arrays': stale copy"))
+    return notes
+
+
+def frames_chart(fr: dict, s: dict, path: str, label: str) -> str:
+    """Front update time and active points per frame (matplotlib Agg)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    frames = fr["frames"]
+    x = [f["frame"] for f in frames]
+    fig = Figure(figsize=(11, 4), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax, aa = fig.subplots(1, 2)
+    ax.plot(x, [f["ms"] for f in frames], linewidth=1, label="front update")
+    ax.axhline(TARGET_MEAN_MS, color="orange", linestyle="--", linewidth=1,
+               label=f"target mean {TARGET_MEAN_MS:g} ms")
+    ax.axhline(TARGET_MAX_MS, color="red", linestyle="--", linewidth=1,
+               label=f"target max {TARGET_MAX_MS:g} ms")
+    ax.axhline(s["mean_ms"], color="tab:blue", linestyle=":", linewidth=1,
+               label=f"mean {s['mean_ms']:.1f} ms")
+    ax.set_xlabel("frame")
+    ax.set_ylabel("ms")
+    ax.set_title("front update per frame (frame 0: from the roots)", fontsize=10)
+    ax.legend(fontsize=8)
+    aa.plot(x, [f["active"] for f in frames], color="tab:green", linewidth=1,
+            label="active points")
+    aa.set_xlabel("frame")
+    aa.set_ylabel("active points", color="tab:green")
+    at = aa.twinx()
+    at.plot(x, [f["tpp"] for f in frames], color="tab:purple", linewidth=1)
+    at.set_ylabel("triangles per active point", color="tab:purple")
+    aa.set_title("active points and triangles per point", fontsize=10)
+    for a in (ax, aa):
+        a.grid(True, alpha=0.3)
+    fig.suptitle(f"fancloud bench vdfc: fly-through over the {label}, e_max "
+                 f"{fr['e_max']:g} m", fontsize=10)
+    fig.savefig(path, dpi=90)
+    return path
+
+
+def run_render(vd, cams, e_max: float, d_max: float, count: int, out_dir: str) -> dict:
+    """``flythrough`` on ``count`` cameras spread over the path, PNG frames in ``out_dir``."""
+    from fancloud_vtk.algorithms.vdfc import flythrough
+
+    idx = np.unique(np.round(np.linspace(0, len(cams) - 1, count)).astype(int))
+    sub = [cams[i] for i in idx]
+    rows = flythrough(vd, sub, e_max, out_dir, d_max=d_max, size=RENDER_SIZE)
+    vd.reset_front()
+    return {"rows": rows, "path_frames": idx.tolist(), "size": list(RENDER_SIZE),
+            "dir": out_dir}
+
+
+# -- peers ---------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _raster(verts, tris, heights, ox, oy, dx, dy, want, best, worst, hits):
+    """Rasterise triangles onto the grid: |surface height - grid height| at wanted nodes.
+
+    ``best`` / ``worst``: the smallest / largest deviation over the
+    triangles above a node (they differ only where the surface folds over
+    itself); ``hits``: how many triangles cover it (edges and vertices
+    count for every triangle that holds them).
+    """
+    ny, nx = heights.shape
+    for t in range(tris.shape[0]):
+        a, b, c = tris[t, 0], tris[t, 1], tris[t, 2]
+        x0, y0, z0 = verts[a, 0], verts[a, 1], verts[a, 2]
+        x1, y1, z1 = verts[b, 0], verts[b, 1], verts[b, 2]
+        x2, y2, z2 = verts[c, 0], verts[c, 1], verts[c, 2]
+        det = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        if det == 0.0:
+            continue  # vertical: no height
+        xmin, xmax = min(x0, x1, x2), max(x0, x1, x2)
+        ymin, ymax = min(y0, y1, y2), max(y0, y1, y2)
+        j0 = max(0, int(np.ceil((xmin - ox) / dx - 1e-9)))
+        j1 = min(nx - 1, int(np.floor((xmax - ox) / dx + 1e-9)))
+        i0 = max(0, int(np.ceil((ymin - oy) / dy - 1e-9)))
+        i1 = min(ny - 1, int(np.floor((ymax - oy) / dy + 1e-9)))
+        tol = 1e-9
+        for i in range(i0, i1 + 1):
+            y = oy + i * dy
+            for j in range(j0, j1 + 1):
+                if not want[i, j]:
+                    continue
+                x = ox + j * dx
+                l1 = ((x - x0) * (y2 - y0) - (x2 - x0) * (y - y0)) / det
+                l2 = ((x1 - x0) * (y - y0) - (x - x0) * (y1 - y0)) / det
+                l0 = 1.0 - l1 - l2
+                if l0 < -tol or l1 < -tol or l2 < -tol:
+                    continue
+                d = abs(l0 * z0 + l1 * z1 + l2 * z2 - heights[i, j])
+                if hits[i, j] == 0 or d < best[i, j]:
+                    best[i, j] = d
+                if hits[i, j] == 0 or d > worst[i, j]:
+                    worst[i, j] = d
+                hits[i, j] += 1
+
+
+def _surface_errors(verts, tris, heights, spacing, origin, want):
+    """(best, worst, hits) grids of a triangle surface against the heights at ``want``."""
+    best = np.zeros(heights.shape)
+    worst = np.zeros(heights.shape)
+    hits = np.zeros(heights.shape, np.int32)
+    _raster(np.ascontiguousarray(verts, dtype=np.float64),
+            np.ascontiguousarray(tris, dtype=np.int64), heights, float(origin[0]),
+            float(origin[1]), float(spacing[0]), float(spacing[1]), want, best, worst, hits)
+    return best, worst, hits
+
+
+def view_sample(points, cam, samples: int, rng) -> np.ndarray:
+    """Indices of the original points inside the camera's frustum, at most ``samples``."""
+    from fancloud_vtk.core.vdfc import Camera
+
+    _, planes = Camera.of(cam).frustum()
+    inside = np.all(points @ planes[:, :3].T + planes[:, 3] >= 0, axis=1)
+    idx = np.flatnonzero(inside)
+    if len(idx) > samples:
+        idx = np.sort(rng.choice(idx, samples, replace=False))
+    return idx
+
+
+def greedy_terrain(heights, spacing, origin, n_triangles: int):
+    """vtkGreedyTerrainDecimation to ``n_triangles``: (vertices, triangles, seconds)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkFiltersHybrid import vtkGreedyTerrainDecimation
+
+    from fancloud_vtk.algorithms.vdfc import image_of_heights
+
+    img = image_of_heights(heights, spacing, origin)
+    g = vtkGreedyTerrainDecimation()
+    g.SetInputData(img)
+    g.SetErrorMeasureToNumberOfTriangles()
+    g.SetNumberOfTriangles(int(n_triangles))
+    t0 = time.perf_counter()
+    g.Update()
+    seconds = time.perf_counter() - t0
+    out = g.GetOutput()
+    v = np.array(vtk_to_numpy(out.GetPoints().GetData()), dtype=np.float64)
+    polys = out.GetPolys()
+    conn = vtk_to_numpy(polys.GetConnectivityArray()).astype(np.int64)
+    off = vtk_to_numpy(polys.GetOffsetsArray()).astype(np.int64)
+    if len(off) > 1 and not (np.diff(off) == 3).all():
+        raise RuntimeError("vtkGreedyTerrainDecimation returned cells that are not triangles")
+    return v, conn.reshape(-1, 3), seconds
+
+
+def fast_simplify(points, triangles, n_triangles: int):
+    """fast_simplification.simplify to ``n_triangles``: (vertices, triangles, seconds)."""
+    import fast_simplification
+
+    t0 = time.perf_counter()
+    v, f = fast_simplification.simplify(points, triangles, target_count=int(n_triangles))
+    seconds = time.perf_counter() - t0
+    return np.asarray(v, np.float64), np.asarray(f, np.int64), seconds
+
+
+def run_peers(vd, fc, heights, spacing, origin, cams, fr: dict, s: dict, n_cams: int,
+              samples: int, seed: int, quiet: bool) -> dict:
+    """Screen-space errors of our fronts and of the two peers at the same triangle count."""
+    budget = int(round(s["triangles_mean"]))
+    ny, nx = heights.shape
+    _log(quiet, f"  peers: reduce to {budget:,} triangles")
+    peers = {}
+    try:
+        peers[SURFACES[1]] = greedy_terrain(heights, spacing, origin, budget)
+    except Exception as exc:
+        peers[SURFACES[1]] = f"{type(exc).__name__}: {exc}"
+    try:
+        peers[SURFACES[2]] = fast_simplify(fc.points, grid_triangles(ny, nx), budget)
+    except Exception as exc:  # e.g. fast-simplification not installed
+        peers[SURFACES[2]] = f"{type(exc).__name__}: {exc}"
+    rng = np.random.default_rng(seed)
+    idx = np.unique(np.round(np.linspace(0, len(cams) - 1, n_cams + 2)[1:-1]).astype(int))
+    e_max, d_max = fr["e_max"], fr["d_max"]
+    per = {name: {"sse": [], "worst": [], "in_view": 0, "missed": 0, "tri_view": []}
+           for name in SURFACES}
+    cam_rows = []
+    vd.reset_front()
+    for k in idx:
+        cam = cams[k]
+        sel = view_sample(fc.points, cam, samples, rng)
+        want = np.zeros(ny * nx, np.bool_)
+        want[sel] = True
+        want = want.reshape(ny, nx)
+        eye = np.asarray(cam[0], dtype=np.float64)
+        dist = np.linalg.norm(fc.points[sel] - eye, axis=1)
+        front = vd.front_arrays(cam, e_max, d_max)
+        surfaces = {SURFACES[0]: (front.points, front.triangles)}
+        surfaces.update({name: p[:2] for name, p in peers.items() if not isinstance(p, str)})
+        row = {"frame": int(k), "in_view": len(sel)}
+        for name, (v, t) in surfaces.items():
+            best, worst, hits = _surface_errors(v, t, heights, spacing, origin, want)
+            h = hits.ravel()[sel]
+            ok = h > 0
+            sse = best.ravel()[sel][ok] / dist[ok]
+            p = per[name]
+            p["sse"].append(sse)
+            p["worst"].append(worst.ravel()[sel][ok] / dist[ok])
+            p["in_view"] += len(sel)
+            p["missed"] += int((~ok).sum())
+            p["tri_view"].append(_triangles_in_view(v, t, cam))
+            row[name] = {"triangles": len(t), "missed": int((~ok).sum()),
+                         "sse_max": float(sse.max()) if len(sse) else None,
+                         "sse_p99": float(np.percentile(sse, 99)) if len(sse) else None}
+        cam_rows.append(row)
+    vd.reset_front()
+    out = {"budget": budget, "cameras": cam_rows, "samples": samples, "surfaces": {},
+           "threshold": e_max / d_max}
+    for name in SURFACES:
+        p = per[name]
+        peer = peers.get(name)
+        if isinstance(peer, str):
+            out["surfaces"][name] = {"error": peer}
+            continue
+        sse = np.concatenate(p["sse"]) if p["sse"] else np.zeros(0)
+        worst = np.concatenate(p["worst"]) if p["worst"] else np.zeros(0)
+        entry = {"in_view": p["in_view"], "missed": p["missed"],
+                 "triangles_in_view": float(np.mean(p["tri_view"])),
+                 "sse_max": float(sse.max()) if len(sse) else None,
+                 "sse_p99": float(np.percentile(sse, 99)) if len(sse) else None,
+                 "sse_mean": float(sse.mean()) if len(sse) else None,
+                 "worst_max": float(worst.max()) if len(worst) else None}
+        if peer is None:  # ours
+            entry.update(points=s["active_mean"], triangles=s["triangles_mean"], seconds=None,
+                         cam_triangles=float(np.mean([r[name]["triangles"]
+                                                      for r in cam_rows])))
+        else:
+            entry.update(points=len(peer[0]), triangles=len(peer[1]), seconds=peer[2])
+        out["surfaces"][name] = entry
+    out["views"] = {name: peers[name][:2] for name in SURFACES[1:]
+                    if not isinstance(peers.get(name), str)}
+    out["view_camera"] = int(idx[len(idx) // 2])
+    return out
+
+
+def _triangles_in_view(v, t, cam) -> int:
+    """Triangles with a vertex inside the frustum."""
+    from fancloud_vtk.core.vdfc import Camera
+
+    _, planes = Camera.of(cam).frustum()
+    inside = np.all(v @ planes[:, :3].T + planes[:, 3] >= 0, axis=1)
+    return int(inside[t].any(axis=1).sum())
+
+
+def _sci(x) -> str:
+    return "n/a" if x is None else f"{x:.3g}"
+
+
+def peer_rows(pr: dict, data: str, n_cams: int) -> list[dict]:
+    sur = pr["surfaces"]
+    how = (f"{n_cams} cameras along the path; vertical distance to the drawn surface / "
+           f"distance to the eye, over the original points in the frustum (<= "
+           f"{pr['samples']:,} sampled per camera); the front's threshold e_max / d_max = "
+           f"{pr['threshold']:.3g}")
+    rows = []
+    for key, label in (("sse_max", "max"), ("sse_p99", "99th percentile")):
+        for name in SURFACES:
+            e = sur[name]
+            if "error" in e:
+                rows.append(_row(f"peers: screen-space error {label}, {name}", data,
+                                 f"failed: {e['error']}", "n/a", "rad"))
+                continue
+            size = (f"{e['triangles']:,.0f} triangles (mean of the fronts)"
+                    if name == SURFACES[0] else
+                    f"{e['points']:,} points, {e['triangles']:,} triangles, reduced in "
+                    f"{e['seconds']:.2f} s")
+            rows.append(_row(f"peers: screen-space error {label}, {name}", data,
+                             f"{size}; {how}; {e['missed']:,} of {e['in_view']:,} points "
+                             "under no triangle", _sci(e[key]), "rad"))
+        ours = sur[SURFACES[0]].get(key)
+        theirs = [(sur[n][key], n) for n in SURFACES[1:] if sur[n].get(key) is not None]
+        if ours is not None and theirs:
+            best, who = min(theirs)
+            ratio = ours / best if best > 0 else float("inf")
+            rows.append(_row(f"peers: ratio ours / best peer, SSE {label}", data,
+                             f"best peer: {who}, at {pr['budget']:,} triangles (our mean)",
+                             f"{ratio:.3g}", "x", f"< {TARGET_SSE_RATIO:g}",
+                             _ok(ratio < TARGET_SSE_RATIO)))
+    return rows
+
+
+def peer_table(pr: dict) -> list[str]:
+    rows = []
+    for name in SURFACES:
+        e = pr["surfaces"][name]
+        if "error" in e:
+            rows.append(dict(zip(PEER_COLUMNS, [name, "failed", e["error"][:80]]
+                                 + ["-"] * (len(PEER_COLUMNS) - 3), strict=True)))
+            continue
+        cells = (name, f"{e['points']:,.0f}", f"{e['triangles']:,.0f}",
+                 f"{e['triangles_in_view']:,.0f}",
+                 "-" if e["seconds"] is None else f"{e['seconds']:.2f}",
+                 _sci(e["sse_max"]), _sci(e["sse_p99"]), _sci(e["sse_mean"]),
+                 _sci(e["worst_max"]), f"{e['in_view']:,}", f"{e['missed']:,}")
+        rows.append(dict(zip(PEER_COLUMNS, cells, strict=True)))
+    return table_lines(PEER_COLUMNS, rows)
+
+
+def render_peers(vd, pr: dict, cams, fr: dict, path: str) -> str:
+    """The three surfaces from one camera, side by side (pyvista off_screen)."""
+    import pyvista as pv
+    from vtkmodules.vtkCommonCore import vtkLogger
+
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
+    k = pr["view_camera"]
+    cam = cams[k]
+    vd.reset_front()
+    front = vd.front_arrays(cam, fr["e_max"], fr["d_max"])
+    vd.reset_front()
+    surf = [(SURFACES[0], front.points, front.triangles)]
+    surf += [(name, v, t) for name, (v, t) in pr["views"].items()]
+    w, h = RENDER_SIZE
+    pl = pv.Plotter(off_screen=True, shape=(1, len(surf)), window_size=(w * len(surf), h),
+                    border=False)
+    for i, (name, v, t) in enumerate(surf):
+        pl.subplot(0, i)
+        e = pr["surfaces"][name]
+        pl.add_text(f"{name}: {len(t):,} triangles\nSSE max {_sci(e['sse_max'])}, "
+                    f"p99 {_sci(e['sse_p99'])}", font_size=9)
+        pl.add_mesh(pv.PolyData.from_regular_faces(v, t), color="#d8c8a8", show_edges=True,
+                    edge_color="#5c5345", line_width=0.3)
+        pl.camera.position, pl.camera.focal_point, pl.camera.up = cam[0], cam[1], cam[2]
+        pl.camera.view_angle = cam[3]
+        pl.renderer.ResetCameraClippingRange()
+    pl.screenshot(path)
+    pl.close()
+    return path
+
+
+# -- the run -------------------------------------------------------------------------------
+
+
+def run_vdfc(args, argv: list[str]) -> dict:
+    """``bench vdfc``: the parts asked for; tables, JSON and figures."""
+    from fancloud_vtk import ViewDependentFanCloud, terrain_fan_cloud, terrain_path
+
+    t_start = time.perf_counter()
+    quiet = args.quiet
+    side = args.n if args.n is not None else (QUICK_N if args.quick else DEFAULT_N)
+    n_frames = args.frames if args.frames is not None else (
+        QUICK_FRAMES if args.quick else DEFAULT_FRAMES)
+    if side < 16 or n_frames < 2 or args.cameras < 1 or args.samples < 1 \
+            or args.render_frames < 0 or not args.e_max > 0:
+        raise ValueError("--n must be at least 16, --frames at least 2, --cameras and "
+                         "--samples at least 1, --render-frames not negative and --e-max > 0")
+    parts = list(dict.fromkeys(args.part))
+    res = {"argv": ["vdfc", *argv], "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+           "args": {"part": parts, "n": side, "repeat": args.repeat, "frames": n_frames,
+                    "e_max": args.e_max, "cameras": args.cameras, "samples": args.samples,
+                    "render_frames": args.render_frames, "seed": args.seed},
+           "machine": machine_info(), "build": None, "frames": None, "render": None,
+           "peers": None}
+    _warm(quiet)
+    heights, spacing, origin, data = terrain(side)
+    fc = terrain_fan_cloud(heights, spacing=spacing, origin=origin)
+    res["data"] = data
+    rows, written, notes = [], [], []
+    if "build" in parts:
+        _log(quiet, f"build: {data}")
+        res["build"] = measure_build(fc, heights.shape, args.repeat, quiet)
+        rows += build_rows(res["build"], data, args.repeat)
+    fr = s = None
+    if "frames" in parts or "peers" in parts:
+        _log(quiet, "forest for the fly-through")
+        vd = ViewDependentFanCloud.build(fc)
+        cams = terrain_path(vd.bounds(), n_frames)
+        d_max = vd.default_d_max(cams[0])
+        _log(quiet, f"frames: {n_frames} cameras, e_max {args.e_max:g} m")
+        fr = run_frames(vd, cams, args.e_max, d_max, quiet)
+        s = frame_summary(fr, fc.n_points)
+        res["frames"] = {**fr, "summary": s}
+    render = None
+    if "frames" in parts:
+        if args.render_frames:
+            _log(quiet, f"render: flythrough of {args.render_frames} frames")
+            try:
+                render = run_render(vd, cams, args.e_max, d_max, args.render_frames,
+                                    os.path.join(args.out, "frames"))
+            except Exception as exc:  # an offscreen render can fail on a machine without GL
+                render = {"error": f"{type(exc).__name__}: {exc}"}
+            res["render"] = render
+        rows += frame_rows(fr, s, data, render)
+        notes += phase_notes(fr["phases"], n_frames)
+    pr = None
+    if "peers" in parts:
+        _log(quiet, f"peers: {args.cameras} cameras")
+        pr = run_peers(vd, fc, heights, spacing, origin, cams, fr, s, args.cameras,
+                       args.samples, args.seed, quiet)
+        rows += peer_rows(pr, data, args.cameras)
+        res["peers"] = {k: v for k, v in pr.items() if k != "views"}
+        notes.append(
+            "peers: the whole terrain reduced to the fronts' mean triangle count by "
+            "vtkGreedyTerrainDecimation (SetErrorMeasureToNumberOfTriangles, on the height "
+            "image) and fast_simplification.simplify(points, grid triangles, target_count); "
+            "the screen-space error (SSE) of a point: |height of the drawn surface at its (x, y) "
+            "- its height| / its distance to the eye, the surface's triangles rasterised onto "
+            "the grid (the same code for the three); where triangles overlap, the nearest "
+            "layer ('worst layer': the farthest)")
+    res["elapsed"] = time.perf_counter() - t_start
+    load = os.getloadavg() if hasattr(os, "getloadavg") else None
+    res["load_average_end"] = load
+    notes.insert(0, "load average at the end " + (", ".join(f"{x:.2f}" for x in load) if load
+                                                  else "unknown"))
+    if fr is not None:
+        notes.insert(1, f"e_max {args.e_max:g} m: chosen so that the 1000 x 1000 terrain's "
+                        "front holds a few per cent of the points (about 3% on average)")
+    text = markdown("fancloud bench vdfc: view-dependent fan clouds (paper section 8)", res,
+                    rows, notes)
+    if pr is not None:
+        text += "\n".join(["", f"## Screen-space error at {pr['budget']:,} triangles", "",
+                           *peer_table(pr)]) + "\n"
+    if render is not None and render.get("rows"):
+        mid = render["rows"][len(render["rows"]) // 2]["frame"]
+        text += "\n".join(["", "## A frame of the fly-through", "",
+                           f"![frame {mid}](frames/frame_{mid:04d}.png)", ""])
+    written += write_outputs(args.out, "vdfc", text, res)
+    if fr is not None:
+        written.append(_frames_csv(fr, os.path.join(args.out, "vdfc_frames.csv")))
+    if "frames" in parts:
+        written.append(frames_chart(fr, s, os.path.join(args.out, "vdfc_frames.png"), data))
+        if render is not None and render.get("rows"):
+            written.append(f"{render['dir']}/frame_*.png ({len(render['rows'])})")
+        elif render is not None:
+            written.append(f"(frames not rendered: {render['error']})")
+    if pr is not None:
+        try:
+            written.append(render_peers(vd, pr, cams, fr, os.path.join(args.out,
+                                                                       "vdfc_peers.png")))
+        except Exception as exc:  # an offscreen render can fail on a machine without GL
+            written.append(f"(vdfc_peers.png not rendered: {type(exc).__name__}: {exc})")
+    print(text)
+    print("written: " + ", ".join(written))
+    return res
+
+
+def _frames_csv(fr: dict, path: str) -> str:
+    with open(path, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(fr["frames"][0]))
+        w.writeheader()
+        w.writerows(fr["frames"])
+    return path
+
+
+def _cmd_vdfc(args, argv) -> int:
+    run_vdfc(args, argv)
+    return 0
+
+
+def add_parser(sub) -> argparse.ArgumentParser:
+    """Register ``vdfc`` on the subparsers of ``fancloud bench``."""
+    p = sub.add_parser(
+        "vdfc", help="view-dependent fan clouds: forest build, fly-through, screen-space error",
+        description="On the Jacksboro DEM: the forest's build time against build_fans; a "
+                    "fly-through's front update time, active points and triangles per point; "
+                    "the screen-space error of the fronts against vtkGreedyTerrainDecimation "
+                    "and fast-simplification at the same triangle count. Writes vdfc.md, "
+                    "vdfc.json, vdfc_frames.csv, vdfc_frames.png, frames/*.png and "
+                    "vdfc_peers.png.")
+    p.add_argument("--part", nargs="+", choices=PARTS, default=list(PARTS),
+                   help="which parts to run (default: %(default)s)")
+    p.add_argument("--n", type=int, default=None,
+                   help=f"side of the terrain grid, n x n points (default: {DEFAULT_N}; "
+                        f"--quick: {QUICK_N})")
+    p.add_argument("--repeat", type=int, default=2,
+                   help="timed runs of the build part, best kept (default: %(default)s)")
+    p.add_argument("--frames", type=int, default=None,
+                   help=f"cameras of the fly-through (default: {DEFAULT_FRAMES}; --quick: "
+                        f"{QUICK_FRAMES})")
+    p.add_argument("--e-max", type=float, default=DEFAULT_E_MAX,
+                   help="the front's e_max in metres at d_max, the range of sight "
+                        "(default: %(default)s: about 3%% of the points active at n = 1000)")
+    p.add_argument("--render-frames", type=int, default=10,
+                   help="frames rendered to PNG by flythrough, 640 x 480, 0: none "
+                        "(default: %(default)s)")
+    p.add_argument("--cameras", type=int, default=5,
+                   help="cameras of the screen-space error comparison (default: %(default)s)")
+    p.add_argument("--samples", type=int, default=200_000,
+                   help="original points in view sampled per camera for the screen-space "
+                        "error (default: %(default)s)")
+    p.add_argument("--quick", action="store_true",
+                   help=f"smoke run: --n {QUICK_N}, --frames {QUICK_FRAMES} (unless given)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
+    p.add_argument("--out", default="bench_out", help="output folder (default: %(default)s)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
+    p.set_defaults(func=_cmd_vdfc)
+    return p

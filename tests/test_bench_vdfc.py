@@ -1,0 +1,89 @@
+"""Smoke test of ``fancloud bench vdfc`` (paper section 8) on a tiny terrain."""
+
+import json
+import math
+
+import numpy as np
+from test_bench import _is_number, _tables
+
+from fancloud_vtk.bench import COLUMNS
+from fancloud_vtk.bench_vdfc import PEER_COLUMNS, SURFACES, _surface_errors, grid_triangles
+from fancloud_vtk.cli import main as cli_main
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def test_surface_errors_of_a_plane():
+    # the grid's own triangles reproduce its heights; a tilted plane is off by its tilt
+    ny, nx = 6, 7
+    jj, ii = np.meshgrid(np.arange(nx), np.arange(ny))
+    heights = 0.5 * jj + 0.25 * ii
+    verts = np.column_stack([jj.ravel() * 2.0, ii.ravel() * 3.0, heights.ravel()])
+    tri = grid_triangles(ny, nx)
+    assert len(tri) == 2 * (ny - 1) * (nx - 1)
+    want = np.ones((ny, nx), np.bool_)
+    best, worst, hits = _surface_errors(verts, tri, heights, (2.0, 3.0), (0.0, 0.0), want)
+    assert (hits > 0).all() and np.allclose(best, 0) and np.allclose(worst, 0)
+    lifted = verts.copy()
+    lifted[:, 2] += 1.5
+    best, _, hits = _surface_errors(lifted, tri[:1], heights, (2.0, 3.0), (0.0, 0.0), want)
+    covered = hits > 0
+    assert covered.sum() == 3 and np.allclose(best[covered], 1.5)  # one triangle: 3 nodes
+
+
+def test_bench_vdfc_smoke(tmp_path, capsys):
+    out = tmp_path / "bench"
+    argv = ["bench", "vdfc", "--n", "120", "--frames", "8", "--repeat", "1",
+            "--render-frames", "2", "--cameras", "2", "--samples", "5000",
+            "--out", str(out), "-q"]
+    assert cli_main(argv) == 0
+
+    text = (out / "vdfc.md").read_text()
+    assert text in capsys.readouterr().out
+    for name in ("vdfc_frames.png", "vdfc_peers.png", "frames/frame_0000.png",
+                 "frames/frame_0001.png"):
+        assert (out / name).read_bytes()[:8] == PNG, name
+    (header, figures), (pheader, peers) = _tables(text)
+    assert tuple(header) == COLUMNS
+    by_name = {row["figure"]: row for row in figures}
+    for name in ("build: build_fans", "build: forest, no blocks", "build: forest, blocks",
+                 "frames: front update, mean", "frames: front update, max",
+                 "frames: active points, mean", "render: fly-through frame, mean"):
+        assert _is_number(by_name[name]["measured"]), by_name[name]
+        assert float(by_name[name]["measured"].replace(",", "")) > 0
+    for name in ("build: ratio forest (blocks) / build_fans", "frames: front update, mean",
+                 "frames: front update, max", "frames: triangles per active point, mean",
+                 "peers: ratio ours / best peer, SSE max"):
+        assert by_name[name]["verdict"] in ("yes", "NO"), by_name[name]
+    tpp = float(by_name["frames: triangles per active point, mean"]["measured"])
+    assert 1 < tpp < 3
+    mean = float(by_name["frames: front update, mean"]["measured"])
+    assert mean <= float(by_name["frames: front update, max"]["measured"])
+    ours = float(by_name["peers: screen-space error max, ours (front)"]["measured"])
+    assert math.isfinite(ours) and ours >= 0
+    p99 = float(by_name["peers: screen-space error 99th percentile, ours (front)"]["measured"])
+    assert 0 <= p99 <= ours
+
+    assert tuple(pheader) == PEER_COLUMNS
+    assert [row["surface"] for row in peers] == list(SURFACES)
+    for row in peers:
+        for key in ("points", "triangles", "SSE max", "SSE p99", "points in view"):
+            assert _is_number(row[key]), (key, row)
+    assert peers[0]["under no triangle"] == "0"
+
+    raw = json.loads((out / "vdfc.json").read_text())
+    frames = raw["frames"]["frames"]
+    assert len(frames) == 8 and all(f["active"] > 0 for f in frames)
+    assert raw["build"]["n"] == 120 * 120 and raw["build"]["blocks"] == 4
+    assert len(raw["render"]["rows"]) == 2
+    lines = (out / "vdfc_frames.csv").read_text().splitlines()
+    assert len(lines) == 9 and lines[0].startswith("frame,")
+
+
+def test_bench_vdfc_one_part(tmp_path, capsys):
+    out = tmp_path / "bench"
+    assert cli_main(["bench", "vdfc", "--part", "build", "--n", "60", "--repeat", "1",
+                     "--out", str(out), "-q"]) == 0
+    text = (out / "vdfc.md").read_text()
+    assert "build: ratio forest (blocks) / build_fans" in text and "frames:" not in text
+    assert not (out / "vdfc_frames.png").exists() and not (out / "vdfc_peers.png").exists()
