@@ -712,13 +712,26 @@ def _refine(pos, radius, bound, child, planes, eye, scale, x):
 
 
 @njit(cache=True)
-def update_front(pos, radius, bound, child, parent, state, front, n_front, planes, eye, scale):
-    """Move the front to a new camera; returns (new front, its size, nodes visited).
+def _refine_memo(pos, radius, bound, child, planes, eye, scale, memo, tick, x):
+    """``_refine`` of x, computed once per frame (``memo[x] == 2 * tick + answer``)."""
+    m = memo[x]
+    if m >> 1 == tick:
+        return (m & 1) == 1
+    r = _refine(pos, radius, bound, child, planes, eye, scale, x)
+    memo[x] = 2 * tick + (1 if r else 0)
+    return r
+
+
+@njit(cache=True)
+def update_front(pos, radius, bound, child, parent, state, front, n_front, planes, eye, scale,
+                 memo, tick):
+    """Move the front to a new camera; returns (front, active, nodes visited).
 
     Starting from the previous front, a front node either splits (while its
     children need it), stays, or gives way to its highest ancestor that no
     longer needs refining; only the nodes that change state are visited
-    besides the front itself.
+    besides the front itself (an ancestor's test is made once per frame:
+    ``memo``, ``tick``). ``active``: the front nodes in the frustum.
     """
     out = np.empty(max(2 * n_front + 16, 64), np.int64)
     m = 0
@@ -729,18 +742,16 @@ def update_front(pos, radius, bound, child, parent, state, front, n_front, plane
         if state[x] != FRONT:
             continue
         visited += 1
-        if _refine(pos, radius, bound, child, planes, eye, scale, x):
+        if _refine_memo(pos, radius, bound, child, planes, eye, scale, memo, tick, x):
             state[x] = REFINED
-            top = 0
             stack[0] = child[x, 1]
-            top = 1
             stack[1] = child[x, 0]
             top = 2
             while top > 0:
                 top -= 1
                 c = stack[top]
                 visited += 1
-                if _refine(pos, radius, bound, child, planes, eye, scale, c):
+                if _refine_memo(pos, radius, bound, child, planes, eye, scale, memo, tick, c):
                     state[c] = REFINED
                     if top + 2 > stack.shape[0]:
                         bigger = np.empty(2 * stack.shape[0], np.int64)
@@ -763,14 +774,13 @@ def update_front(pos, radius, bound, child, parent, state, front, n_front, plane
         y = parent[x]
         while y >= 0:
             visited += 1
-            if _refine(pos, radius, bound, child, planes, eye, scale, y):
+            if _refine_memo(pos, radius, bound, child, planes, eye, scale, memo, tick, y):
                 break
             top_node = y
             y = parent[y]
         if top_node >= 0:
             state[top_node] = FRONT
             # clear the refined subtree below it
-            sp = 0
             stack[0] = child[top_node, 0]
             stack[1] = child[top_node, 1]
             sp = 2
@@ -795,16 +805,22 @@ def update_front(pos, radius, bound, child, parent, state, front, n_front, plane
             out = bigger
         out[m] = x
         m += 1
-    # drop the entries collapsed after they were written
+    # drop the entries collapsed after they were written; the active ones in view
     k = 0
+    active = np.empty(m, np.int64)
+    na = 0
     for i in range(m):
-        if state[out[i]] == FRONT:
-            state[out[i]] = -FRONT  # mark as written once
-            out[k] = out[i]
+        x = out[i]
+        if state[x] == FRONT:
+            state[x] = -FRONT  # mark as written once
+            out[k] = x
             k += 1
+            if _visible(pos, radius, planes, x):
+                active[na] = x
+                na += 1
     for i in range(k):
         state[out[i]] = FRONT
-    return out[:k].copy(), k, visited
+    return out[:k].copy(), active[:na].copy(), visited
 
 
 @njit(cache=True)
@@ -820,12 +836,24 @@ def active_nodes(pos, radius, planes, front):
 
 
 @njit(cache=True)
-def _representative(pos, child, parent, state, a, y):
-    """The active stand-in for fan neighbour y of the front node a."""
-    while state[y] == 0:  # below the front: its front ancestor
-        y = parent[y]
-        if y < 0:
-            return -1
+def _representative(pos, child, parent, state, a, y, up, up_tick, tick):
+    """The active stand-in for fan neighbour y of the front node a.
+
+    Below the front, the front ancestor is remembered for the frame
+    (``up[y]`` valid when ``up_tick[y] == tick``) along the whole path walked.
+    """
+    if state[y] == 0:
+        z = y
+        while state[z] == 0 and up_tick[z] != tick:
+            z = parent[z]
+            if z < 0:
+                return -1
+        top = up[z] if state[z] == 0 else z
+        while y != z:
+            up[y] = top
+            up_tick[y] = tick
+            y = parent[y]
+        return top
     while state[y] == REFINED:  # above the front: the child nearer to a
         c0 = child[y, 0]
         c1 = child[y, 1]
@@ -871,7 +899,8 @@ def _extras(mring, aidx, na):
 
 
 @njit(cache=True)
-def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring):
+def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring, up,
+                    up_tick, tick):
     """Distinct triangles of the active fans; returns (triangles, extra points).
 
     ``aidx[x]`` is x's index in ``active`` (or -1). A fan neighbour that is
@@ -893,7 +922,7 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
         x = active[i]
         for j in range(ring_off[x + 1] - ring_off[x]):
             mring[moff[i] + j] = _representative(pos, child, parent, state, x,
-                                                 ring[ring_off[x] + j])
+                                                 ring[ring_off[x] + j], up, up_tick, tick)
     extra = _extras(mring, aidx, na)
     ne = extra.shape[0]
     for a in range(mring.shape[0]):
