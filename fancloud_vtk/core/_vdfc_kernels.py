@@ -3,9 +3,11 @@
 Building the forest (:func:`merge_forest`): a sequence of merges of the
 point of lowest entropy ``p`` with its lowest-entropy neighbour ``q`` into a
 new node ``r``, whose neighbours are those of ``p`` and ``q`` minus ``p`` and
-``q``. The neighbour sets sit in a fixed-width table (``r`` takes ``p``'s
-row); the nodes wait in an indexed binary heap keyed by entropy (ties broken
-by the smaller id, so the order is deterministic). Locked nodes (the shared
+``q``. The build tables are indexed by slot (``r`` takes ``p``'s slot, so the
+slots keep the input's spatial order): the neighbour sets sit in a
+fixed-width table of slots; the nodes wait in an indexed 4-ary heap of
+(entropy, id) pairs (ties broken by the smaller id, so the order is
+deterministic). Locked nodes (the shared
 points of terrain blocks) are never merged. The fan of ``r`` at merge time is
 its neighbour set sorted around its normal.
 
@@ -22,10 +24,14 @@ ancestor or representative.
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit, prange
+import sys
 
-from ._entropy_kernels import point_cc, point_terms
+import numpy as np
+from llvmlite import ir
+from numba import njit, prange, types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
 from ._mesh_kernels import _tangent
 
 MERGE_ENTROPY = 0
@@ -120,105 +126,210 @@ def edges_outside_blocks(offsets, ring, mem_off, mem):
     return bad, first
 
 
-# -- indexed heap with insertion and removal ------------------------------------------
+# -- the merges: tables by slot, an indexed 4-ary heap ---------------------------------
+
+# the head of a slot's row in the neighbour table R (int32), then its neighbour slots
+_LEN = 0  # number of neighbours
+_FLAGS = 1  # _LOCKED | _OPEN
+_ID = 2  # the node id in the slot (-1: none)
+_HEAD = 4  # first neighbour column
+_LOCKED = 1
+_OPEN = 2
+
+
+if sys.platform.startswith("linux"):
+    @intrinsic
+    def _madvise(typingctx, addr, length, advice):
+        sig = types.int32(types.uintp, types.uintp, types.int32)
+
+        def codegen(context, builder, signature, args):
+            ptr_t = ir.IntType(8).as_pointer()
+            fnty = ir.FunctionType(ir.IntType(32), [ptr_t, ir.IntType(64), ir.IntType(32)])
+            fn = cgutils.get_or_insert_function(builder.module, fnty, "madvise")
+            return builder.call(fn, [builder.inttoptr(args[0], ptr_t), args[1], args[2]])
+
+        return sig, codegen
+
+    @njit(cache=True)
+    def _huge_pages(a):
+        """Ask Linux for transparent huge pages on the 2 MiB pages inside a's (untouched) buffer.
+
+        The merges jump about in tables of hundreds of MB: with 4 KiB pages
+        nearly every access is also a TLB miss. Only a hint (errors ignored).
+        """
+        start = a.ctypes.data
+        end = start + a.size * a.itemsize
+        lo = (start + (1 << 21) - 1) & ~((1 << 21) - 1)
+        hi = end & ~((1 << 21) - 1)
+        if hi > lo:
+            _madvise(np.uintp(lo), np.uintp(hi - lo), np.int32(14))  # MADV_HUGEPAGE
+else:
+    @njit(cache=True)
+    def _huge_pages(a):
+        """No-op away from Linux."""
 
 
 @njit(cache=True)
-def _less(key, a, b):
-    return key[a] < key[b] or (key[a] == key[b] and a < b)
+def _hbase(hbuf):
+    """Root index that puts every group of 4 children on one 64-byte line."""
+    return (((64 - hbuf.ctypes.data % 64) % 64) // 16 + 3) % 4
 
 
 @njit(cache=True)
-def _up(heap, hpos, key, i):
-    x = heap[i]
+def _iup(hv, hk, hpos, base, i, key, tag):
+    """Place (key, tag) at i or above in the indexed 4-ary heap."""
+    mask = np.int64(0xFFFFFFFF)
     while i > 0:
-        parent = (i - 1) >> 1
-        y = heap[parent]
-        if not _less(key, x, y):
+        par = (i - 1) >> 2
+        e = 2 * (base + par)
+        pk = hk[e]
+        pt = hv[e + 1]
+        if not (key < pk or (key == pk and tag < pt)):
             break
-        heap[i] = y
-        hpos[y] = i
-        i = parent
-    heap[i] = x
-    hpos[x] = i
+        f = 2 * (base + i)
+        hv[f] = hv[e]
+        hv[f + 1] = pt
+        hpos[pt & mask] = i
+        i = par
+    f = 2 * (base + i)
+    hk[f] = key
+    hv[f + 1] = tag
+    hpos[tag & mask] = i
 
 
 @njit(cache=True)
-def _down(heap, hpos, key, i, size):
-    x = heap[i]
+def _idown(hv, hk, hpos, base, i, key, tag, size):
+    """Place (key, tag) at i or below in the indexed 4-ary heap of ``size`` entries."""
+    mask = np.int64(0xFFFFFFFF)
     while True:
-        c = 2 * i + 1
+        c = 4 * i + 1
         if c >= size:
             break
-        if c + 1 < size and _less(key, heap[c + 1], heap[c]):
-            c += 1
-        y = heap[c]
-        if not _less(key, y, x):
+        e = c + 4
+        if e > size:
+            e = size
+        bc = c
+        bk = hk[2 * (base + c)]
+        bt = hv[2 * (base + c) + 1]
+        for j in range(c + 1, e):
+            jk = hk[2 * (base + j)]
+            jt = hv[2 * (base + j) + 1]
+            if jk < bk or (jk == bk and jt < bt):
+                bc = j
+                bk = jk
+                bt = jt
+        if not (bk < key or (bk == key and bt < tag)):
             break
-        heap[i] = y
-        hpos[y] = i
-        i = c
-    heap[i] = x
-    hpos[x] = i
+        f = 2 * (base + i)
+        hk[f] = bk
+        hv[f + 1] = bt
+        hpos[bt & mask] = i
+        i = bc
+    f = 2 * (base + i)
+    hk[f] = key
+    hv[f + 1] = tag
+    hpos[tag & mask] = i
 
 
 @njit(cache=True)
-def _push(heap, hpos, key, x, size):
-    heap[size] = x
-    hpos[x] = size
-    _up(heap, hpos, key, size)
-    return size + 1
-
-
-@njit(cache=True)
-def _remove(heap, hpos, key, x, size):
-    i = hpos[x]
-    hpos[x] = -1
+def _iremove(hv, hk, hpos, base, i, size):
+    """Remove the entry at i; returns the new size."""
+    mask = np.int64(0xFFFFFFFF)
+    hpos[hv[2 * (base + i) + 1] & mask] = -1
     size -= 1
     if i == size:
         return size
-    y = heap[size]
-    heap[i] = y
-    hpos[y] = i
-    _up(heap, hpos, key, i)
-    _down(heap, hpos, key, hpos[y], size)
+    lk = hk[2 * (base + size)]
+    lt = hv[2 * (base + size) + 1]
+    if i > 0:
+        par = (i - 1) >> 2
+        pk = hk[2 * (base + par)]
+        if lk < pk or (lk == pk and lt < hv[2 * (base + par) + 1]):
+            _iup(hv, hk, hpos, base, i, lk, lt)
+            return size
+    _idown(hv, hk, hpos, base, i, lk, lt, size)
     return size
 
 
 @njit(cache=True)
-def _rekey(heap, hpos, key, x, value, size):
-    old = key[x]
-    key[x] = value
-    if hpos[x] < 0:
-        return size
-    if value < old:
-        _up(heap, hpos, key, hpos[x])
-    else:
-        _down(heap, hpos, key, hpos[x], size)
-    return size
-
-
-# -- the merges -------------------------------------------------------------------------
+def _ikey(hv, hk, hpos, base, s, key, size):
+    """Change the key of slot s's entry."""
+    i = hpos[s]
+    f = 2 * (base + i)
+    old = hk[f]
+    tag = hv[f + 1]
+    if key < old:
+        _iup(hv, hk, hpos, base, i, key, tag)
+    elif key > old:
+        _idown(hv, hk, hpos, base, i, key, tag, size)
 
 
 @njit(cache=True)
-def _terms(pos, nrm, col, R, rlen, slot, x, dbar):
-    s = slot[x]
-    return point_terms(pos, nrm, col, x, R[s], rlen[s], dbar)
+def _terms(F, C, R, s, dbar):
+    """``point_terms`` of the node in slot s (same arithmetic, on the slot tables)."""
+    k = R[s, _LEN]
+    if k == 0:
+        return 0.0, 0.0, 0.0
+    has_col = C.shape[0] > 0
+    s_d = 0.0
+    s_c = 0.0
+    s_col = 0.0
+    px, py, pz = F[s, 0], F[s, 1], F[s, 2]
+    nx, ny, nz = F[s, 3], F[s, 4], F[s, 5]
+    for a in range(k):
+        q = R[s, _HEAD + a]
+        dx = px - F[q, 0]
+        dy = py - F[q, 1]
+        dz = pz - F[q, 2]
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if d <= 0.0:
+            continue
+        s_d += d
+        sgn = 1.0
+        if (F[q, 3] * nx + F[q, 4] * ny + F[q, 5] * nz) < 0.0:
+            sgn = -1.0
+        ex = sgn * F[q, 3] - nx
+        ey = sgn * F[q, 4] - ny
+        ez = sgn * F[q, 5] - nz
+        s_c += np.sqrt(ex * ex + ey * ey + ez * ez) / d
+        if has_col:
+            cx = C[q, 0] - C[s, 0]
+            cy = C[q, 1] - C[s, 1]
+            cz = C[q, 2] - C[s, 2]
+            s_col += np.sqrt(cx * cx + cy * cy + cz * cz) / d
+    return s_d / k / dbar, s_c / k * dbar, s_col / k * dbar
 
 
 @njit(cache=True)
-def _sorted_ring(pos, nx, ny, nz, r, nbrs, k, is_open, out, ang):
-    """``nbrs[:k]`` sorted counter-clockwise around (nx, ny, nz) at r into ``out``.
+def _cc(F, R, s, dbar):
+    """``point_cc`` of the node in slot s (same arithmetic, curvature terms in ``F[:, 7]``)."""
+    k = R[s, _LEN]
+    if k == 0:
+        return 0.0
+    acc = 0.0
+    for a in range(k):
+        q = R[s, _HEAD + a]
+        dx = F[s, 0] - F[q, 0]
+        dy = F[s, 1] - F[q, 1]
+        dz = F[s, 2] - F[q, 2]
+        d = np.sqrt(dx * dx + dy * dy + dz * dz)
+        if d > 0.0:
+            acc += abs(F[q, 7] - F[s, 7]) / d
+    return acc / k * dbar
+
+
+@njit(cache=True)
+def _sorted_ring(F, s, nbrs, k, is_open, out, ang):
+    """``nbrs[:k]`` (slots) sorted counter-clockwise around slot s's normal into ``out``.
 
     An open fan starts after its widest angular gap. ``ang``: scratch of k floats.
     """
-    ux, uy, uz, vx, vy, vz = _tangent(nx, ny, nz)
+    ux, uy, uz, vx, vy, vz = _tangent(F[s, 3], F[s, 4], F[s, 5])
     for a in range(k):
         q = nbrs[a]
-        dx = pos[q, 0] - pos[r, 0]
-        dy = pos[q, 1] - pos[r, 1]
-        dz = pos[q, 2] - pos[r, 2]
+        dx = F[q, 0] - F[s, 0]
+        dy = F[q, 1] - F[s, 1]
+        dz = F[q, 2] - F[s, 2]
         t = np.arctan2(dx * vx + dy * vy + dz * vz, dx * ux + dy * uy + dz * uz)
         b = a
         while b > 0 and ang[b - 1] > t:
@@ -245,6 +356,12 @@ def _sorted_ring(pos, nx, ny, nz, r, nbrs, k, is_open, out, ang):
                 out[a] = nbrs[a]
 
 
+@njit(cache=True)
+def _key_of(w, dist, curv, cc, cterm):
+    """The entropy of a node from its four terms."""
+    return w[0] * dist + w[1] * curv + w[2] * cc + w[3] * cterm
+
+
 @njit(cache=True, nogil=True)
 def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method, min_alive,
                  width):
@@ -257,126 +374,171 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
     out_off, out_adj)``: the ``k`` new nodes, their children and fans at
     merge time, which nodes are left, and the neighbour sets of those left
     (CSR over the alive ids in increasing order).
+
+    Internally every table is indexed by *slot*: node x of the input sits in
+    slot x and a merged node takes the slot of its p, so that the slots keep
+    the input's spatial order and a merge touches nearby memory. ``F`` holds
+    a slot's position, normal, entropy and curvature term (one cache line),
+    ``R`` its neighbour slots behind a head of (count, flags, node id).
     """
     m = pos0.shape[0]
-    cap = 2 * m
     nc = col0.shape[1]
-    pos = np.empty((cap, 3))
-    nrm = np.empty((cap, 3))
-    col = np.zeros((cap, nc))
-    opn = np.zeros(cap, np.bool_)
-    locked = np.zeros(cap, np.bool_)
-    pos[:m] = pos0
-    nrm[:m] = nrm0
-    if nc > 0:
-        col[:m] = col0
-    opn[:m] = open0
-    locked[:m] = locked0
-    slot = np.full(cap, -1, np.int64)
-    R = np.empty((m, width), np.int32)
-    rlen = np.zeros(m, np.int64)
-    alive = np.zeros(cap, np.bool_)
-    for x in range(m):
-        slot[x] = x
-        alive[x] = True
-        d = adj_off[x + 1] - adj_off[x]
-        if d > width:
-            d = width  # cannot happen for fans of at most width - 1 neighbours
-        for a in range(d):
-            R[x, a] = adj[adj_off[x] + a]
-        rlen[x] = d
-    dist = np.zeros(cap)
-    curv = np.zeros(cap)
-    cterm = np.zeros(cap)
-    key = np.full(cap, np.inf)
-    colors = col if nc > 0 else np.zeros((0, 3))
-    for x in range(m):
-        dist[x], curv[x], cterm[x] = _terms(pos, nrm, colors, R, rlen, slot, x, dbar)
-    for x in range(m):
+    stride = ((_HEAD + width + 15) // 16) * 16
+    # per slot: pos, nrm, key, curv (one 64-byte line when aligned)
+    fbuf = np.empty(m * 8 + 8)
+    _huge_pages(fbuf)
+    fo = ((64 - fbuf.ctypes.data % 64) % 64) // 8
+    F = fbuf[fo:fo + 8 * m].reshape((m, 8))
+    rbuf = np.empty(m * stride + 16, np.int32)
+    _huge_pages(rbuf)
+    ro = ((64 - rbuf.ctypes.data % 64) % 64) // 4
+    R = rbuf[ro:ro + m * stride].reshape((m, stride))
+    C = np.empty((m if nc > 0 else 0, nc))
+    for s in range(m):
+        x = s  # the input's node x in slot x
+        for d in range(3):
+            F[s, d] = pos0[x, d]
+            F[s, 3 + d] = nrm0[x, d]
+        for d in range(nc):
+            C[s, d] = col0[x, d]
+        deg = adj_off[x + 1] - adj_off[x]
+        if deg > width:
+            deg = width  # cannot happen for fans of at most width - 1 neighbours
+        for a in range(deg):
+            R[s, _HEAD + a] = adj[adj_off[x] + a]
+        R[s, _LEN] = deg
+        fl = 0
+        if locked0[x]:
+            fl |= _LOCKED
+        if open0[x]:
+            fl |= _OPEN
+        R[s, _FLAGS] = fl
+        R[s, _ID] = x
+    Cc = C if nc > 0 else np.zeros((0, 3))
+    dist = np.empty(m)
+    cterm = np.empty(m)
+    for s in range(m):
+        dist[s], F[s, 7], cterm[s] = _terms(F, Cc, R, s, dbar)
+    for s in range(m):
         cc = 0.0
         if w[2] != 0.0:
-            s = slot[x]
-            cc = point_cc(pos, curv, x, R[s], rlen[s], dbar)
-        key[x] = w[0] * dist[x] + w[1] * curv[x] + w[2] * cc + w[3] * cterm[x]
-    # the heap orders by hkey <= key: a key that grows is only corrected when it
-    # comes to the top (lazy), one that shrinks is sifted up at once
-    hkey = key.copy()
-    heap = np.empty(cap, np.int64)
-    hpos = np.full(cap, -1, np.int64)
+            cc = _cc(F, R, s, dbar)
+        F[s, 6] = _key_of(w, dist[s], F[s, 7], cc, cterm[s])
+    dist = np.empty(0)
+    cterm = np.empty(0)
+    # the heap: an indexed 4-ary heap of (key, id << 32 | slot), the position of
+    # every slot's entry in hpos (-1: not in the heap)
+    hbuf = np.empty(2 * m + 16, np.int64)
+    _huge_pages(hbuf)
+    hb = _hbase(hbuf)
+    hk = hbuf.view(np.float64)
+    hpos = np.full(m, -1, np.int32)
     size = 0
-    for x in range(m):
-        if not locked[x]:
-            heap[size] = x
-            hpos[x] = size
+    for s in range(m):
+        if not (R[s, _FLAGS] & _LOCKED):
+            hk[2 * (hb + size)] = F[s, 6]
+            hbuf[2 * (hb + size) + 1] = (np.int64(s) << 32) | s
+            hpos[s] = size
             size += 1
-    for i in range(size // 2 - 1, -1, -1):
-        _down(heap, hpos, hkey, i, size)
+    for i in range((size - 2) // 4, -1, -1):
+        f = 2 * (hb + i)
+        _idown(hbuf, hk, hpos, hb, i, hk[f], hbuf[f + 1], size)
 
     child = np.empty((m, 2), np.int64)
+    opos = np.empty((m, 3))
+    onrm = np.empty((m, 3))
+    ocol = np.zeros((m, nc))
+    oopn = np.zeros(m, np.bool_)
     ring_off = np.zeros(m + 1, np.int64)
     ring = np.empty(8 * m + 64, np.int64)
-    stamp = np.zeros(cap, np.int64)
-    buf = np.empty(2 * width, np.int64)
-    srt = np.empty(2 * width, np.int64)
-    angbuf = np.empty(2 * width)
+    buf = np.empty(2 * width + 2, np.int64)
+    srt = np.empty(2 * width + 2, np.int64)
+    angbuf = np.empty(2 * width + 2)
+    skip = np.zeros(2 * width + 2, np.bool_)
+    tdist = np.empty(2 * width + 2)
+    tcterm = np.empty(2 * width + 2)
     n_alive = m
     k = 0
+    mask = np.int64(0xFFFFFFFF)
     while size > 0 and n_alive > min_alive:
-        p = heap[0]
-        if hkey[p] < key[p]:
-            hkey[p] = key[p]
-            _down(heap, hpos, hkey, 0, size)
-            continue
-        size = _remove(heap, hpos, hkey, p, size)
-        sp = slot[p]
+        tag = hbuf[2 * hb + 1]
+        size = _iremove(hbuf, hk, hpos, hb, 0, size)
+        sp = tag & mask
+        p = tag >> 32
+        kp = F[sp, 6]
+        lp = R[sp, _LEN]
         # the lowest-entropy neighbour that can merge with p
-        q = -1
-        for a in range(rlen[sp]):
-            y = R[sp, a]
-            if locked[y]:
-                continue
-            if q >= 0 and not _less(key, y, q):
-                continue
-            # union size
-            tag = -(k + 1)
-            c = 0
-            for b in range(rlen[sp]):
-                z = R[sp, b]
-                if z != y:
-                    stamp[z] = tag
+        sq = -1
+        for a in range(lp):
+            skip[a] = False
+        while True:
+            best = -1
+            bk = 0.0
+            bi = 0
+            for a in range(lp):
+                if skip[a]:
+                    continue
+                y = R[sp, _HEAD + a]
+                if R[y, _FLAGS] & _LOCKED:
+                    continue
+                yk = F[y, 6]
+                if best < 0 or yk < bk or (yk == bk and R[y, _ID] < bi):
+                    best = a
+                    bk = yk
+                    bi = R[y, _ID]
+            if best < 0:
+                break
+            y = R[sp, _HEAD + best]
+            ly = R[y, _LEN]
+            if lp - 1 + ly <= width:  # the union cannot be larger
+                sq = y
+                break
+            c = lp - 1
+            for b in range(ly):
+                z = R[y, _HEAD + b]
+                if z == sp:
+                    continue
+                found = False
+                for e in range(lp):
+                    if R[sp, _HEAD + e] == z:
+                        found = True
+                        break
+                if not found:
                     c += 1
-            sy = slot[y]
-            for b in range(rlen[sy]):
-                z = R[sy, b]
-                if z != p and stamp[z] != tag:
-                    c += 1
-            for b in range(rlen[sp]):
-                stamp[R[sp, b]] = 0
             if c <= width:
-                q = y
-        if q < 0:
+                sq = y
+                break
+            skip[best] = True
+        if sq < 0:
             continue  # p waits outside the heap until its neighbourhood changes
-        sq = slot[q]
-        size = _remove(heap, hpos, hkey, q, size)
+        q = np.int64(R[sq, _ID])
+        if hpos[sq] >= 0:
+            size = _iremove(hbuf, hk, hpos, hb, hpos[sq], size)
         r = m + k
         # the union of the neighbour sets, minus p and q
-        tag = r + 1
         c = 0
-        for b in range(rlen[sp]):
-            z = R[sp, b]
-            if z != q and stamp[z] != tag:
-                stamp[z] = tag
+        for b in range(lp):
+            z = R[sp, _HEAD + b]
+            if z != sq:
                 buf[c] = z
                 c += 1
-        for b in range(rlen[sq]):
-            z = R[sq, b]
-            if z != p and stamp[z] != tag:
-                stamp[z] = tag
+        lq = R[sq, _LEN]
+        for b in range(lq):
+            z = R[sq, _HEAD + b]
+            if z == sp:
+                continue
+            found = False
+            for e in range(lp):
+                if R[sp, _HEAD + e] == z:
+                    found = True
+                    break
+            if not found:
                 buf[c] = z
                 c += 1
         # position, normal, colour of r
-        mp = key[p] if key[p] > 0.0 else 0.0
-        mq = key[q] if key[q] > 0.0 else 0.0
+        kq = F[sq, 6]
+        mp = kp if kp > 0.0 else 0.0
+        mq = kq if kq > 0.0 else 0.0
         if method == MERGE_HALF_EDGE:
             wp, wq = 0.0, 1.0
         elif mp + mq > 0.0:
@@ -384,25 +546,34 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
         else:
             wp, wq = 0.5, 0.5
         sgn = 1.0
-        if nrm[p, 0] * nrm[q, 0] + nrm[p, 1] * nrm[q, 1] + nrm[p, 2] * nrm[q, 2] < 0.0:
+        if F[sp, 3] * F[sq, 3] + F[sp, 4] * F[sq, 4] + F[sp, 5] * F[sq, 5] < 0.0:
             sgn = -1.0
         ln = 0.0
-        for d in range(3):
-            pos[r, d] = wp * pos[p, d] + wq * pos[q, d]
-            nrm[r, d] = (mp + 1e-300) * nrm[p, d] + sgn * (mq + 1e-300) * nrm[q, d]
-            ln += nrm[r, d] * nrm[r, d]
+        x0 = wp * F[sp, 0] + wq * F[sq, 0]
+        x1 = wp * F[sp, 1] + wq * F[sq, 1]
+        x2 = wp * F[sp, 2] + wq * F[sq, 2]
+        n0 = (mp + 1e-300) * F[sp, 3] + sgn * (mq + 1e-300) * F[sq, 3]
+        n1 = (mp + 1e-300) * F[sp, 4] + sgn * (mq + 1e-300) * F[sq, 4]
+        n2 = (mp + 1e-300) * F[sp, 5] + sgn * (mq + 1e-300) * F[sq, 5]
+        ln = n0 * n0
+        ln += n1 * n1
+        ln += n2 * n2
         ln = np.sqrt(ln)
-        for d in range(3):
-            if ln > 1e-12:
-                nrm[r, d] /= ln
-            else:
-                nrm[r, d] = nrm[p, d]
+        if ln > 1e-12:
+            n0 /= ln
+            n1 /= ln
+            n2 /= ln
+        else:
+            n0, n1, n2 = F[sp, 3], F[sp, 4], F[sp, 5]
         for d in range(nc):
-            col[r, d] = wp * col[p, d] + wq * col[q, d]
-        opn[r] = opn[p] or opn[q]
-        # the fan of r at merge time
-        if k + 1 > child.shape[0]:
-            break  # cannot happen: at most m - 1 merges
+            C[sp, d] = wp * C[sp, d] + wq * C[sq, d]
+            ocol[k, d] = C[sp, d]
+        is_open = ((R[sp, _FLAGS] | R[sq, _FLAGS]) & _OPEN) != 0
+        F[sp, 0], F[sp, 1], F[sp, 2] = x0, x1, x2
+        F[sp, 3], F[sp, 4], F[sp, 5] = n0, n1, n2
+        opos[k, 0], opos[k, 1], opos[k, 2] = x0, x1, x2
+        onrm[k, 0], onrm[k, 1], onrm[k, 2] = n0, n1, n2
+        oopn[k] = is_open
         child[k, 0] = p
         child[k, 1] = q
         need = ring_off[k] + c
@@ -410,69 +581,73 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
             bigger = np.empty(2 * need, np.int64)
             bigger[:ring_off[k]] = ring[:ring_off[k]]
             ring = bigger
-        _sorted_ring(pos, nrm[r, 0], nrm[r, 1], nrm[r, 2], r, buf, c, opn[r], srt, angbuf)
+        _sorted_ring(F, sp, buf, c, is_open, srt, angbuf)
         for b in range(c):
-            ring[ring_off[k] + b] = srt[b]
+            ring[ring_off[k] + b] = R[srt[b], _ID]
         ring_off[k + 1] = need
-        # r takes p's row
+        # r takes p's slot
         for b in range(c):
-            R[sp, b] = buf[b]
-        rlen[sp] = c
-        slot[r] = sp
-        slot[p] = -1
-        slot[q] = -1
-        alive[p] = False
-        alive[q] = False
-        alive[r] = True
+            R[sp, _HEAD + b] = buf[b]
+        R[sp, _LEN] = c
+        R[sp, _ID] = r
+        R[sp, _FLAGS] = _OPEN if is_open else 0
+        R[sq, _ID] = -1
+        R[sq, _FLAGS] = 0
         n_alive -= 1
         # the neighbours see r instead of p and q
         for b in range(c):
-            x = buf[b]
-            sx = slot[x]
+            sx = buf[b]
             e = 0
-            for a in range(rlen[sx]):
-                z = R[sx, a]
-                if z != p and z != q:
-                    R[sx, e] = z
+            for a in range(R[sx, _LEN]):
+                z = R[sx, _HEAD + a]
+                if z != sp and z != sq:
+                    R[sx, _HEAD + e] = z
                     e += 1
-            R[sx, e] = r
-            rlen[sx] = e + 1
+            R[sx, _HEAD + e] = sp
+            R[sx, _LEN] = e + 1
         # entropies of r and its neighbours
-        dist[r], curv[r], cterm[r] = _terms(pos, nrm, colors, R, rlen, slot, r, dbar)
+        tdist[0], F[sp, 7], tcterm[0] = _terms(F, Cc, R, sp, dbar)
         for b in range(c):
-            x = buf[b]
-            dist[x], curv[x], cterm[x] = _terms(pos, nrm, colors, R, rlen, slot, x, dbar)
+            sx = buf[b]
+            tdist[b + 1], F[sx, 7], tcterm[b + 1] = _terms(F, Cc, R, sx, dbar)
         for b in range(-1, c):
-            x = r if b < 0 else buf[b]
+            sx = sp if b < 0 else buf[b]
             cc = 0.0
             if w[2] != 0.0:
-                s = slot[x]
-                cc = point_cc(pos, curv, x, R[s], rlen[s], dbar)
-            value = w[0] * dist[x] + w[1] * curv[x] + w[2] * cc + w[3] * cterm[x]
-            key[x] = value
-            if locked[x]:
+                cc = _cc(F, R, sx, dbar)
+            value = _key_of(w, tdist[b + 1], F[sx, 7], cc, tcterm[b + 1])
+            F[sx, 6] = value
+            if R[sx, _FLAGS] & _LOCKED:
                 continue
-            if hpos[x] < 0:
-                hkey[x] = value
-                size = _push(heap, hpos, hkey, x, size)
-            elif value < hkey[x]:
-                hkey[x] = value
-                _up(heap, hpos, hkey, hpos[x])
+            if hpos[sx] < 0:
+                size += 1
+                _iup(hbuf, hk, hpos, hb, size - 1, value, (np.int64(R[sx, _ID]) << 32) | sx)
+            else:
+                _ikey(hbuf, hk, hpos, hb, sx, value, size)
         k += 1
     # the nodes left and their neighbour sets
     total = m + k
+    alive = np.zeros(total, np.bool_)
+    slot_of = np.full(total, -1, np.int64)
+    for s in range(m):
+        x = R[s, _ID]
+        if x >= 0:
+            alive[x] = True
+            slot_of[x] = s
     out_off = np.zeros(total + 1, np.int64)
     for x in range(total):
-        out_off[x + 1] = out_off[x] + (rlen[slot[x]] if alive[x] else 0)
+        out_off[x + 1] = out_off[x] + (R[slot_of[x], _LEN] if alive[x] else 0)
     out_adj = np.empty(out_off[total], np.int64)
     for x in range(total):
         if alive[x]:
-            s = slot[x]
-            row = np.sort(R[s, :rlen[s]].astype(np.int64))
-            out_adj[out_off[x]:out_off[x + 1]] = row
-    return (k, child[:k].copy(), pos[m:total].copy(), nrm[m:total].copy(),
-            col[m:total].copy(), opn[m:total].copy(), ring_off[:k + 1].copy(),
-            ring[:ring_off[k]].copy(), alive[:total].copy(), out_off, out_adj)
+            s = slot_of[x]
+            row = np.empty(R[s, _LEN], np.int64)
+            for a in range(R[s, _LEN]):
+                row[a] = R[R[s, _HEAD + a], _ID]
+            out_adj[out_off[x]:out_off[x + 1]] = np.sort(row)
+    return (k, child[:k].copy(), opos[:k].copy(), onrm[:k].copy(),
+            ocol[:k].copy(), oopn[:k].copy(), ring_off[:k + 1].copy(),
+            ring[:ring_off[k]].copy(), alive, out_off, out_adj)
 
 
 # -- tables of the built forest ---------------------------------------------------------
@@ -528,92 +703,142 @@ def leaf_order(child):
 
 
 @njit(cache=True)
-def _point_triangle(px, py, pz, a, b, c):
-    """Distance from p to triangle abc (Ericson's closest point)."""
-    abx, aby, abz = b[0] - a[0], b[1] - a[1], b[2] - a[2]
-    acx, acy, acz = c[0] - a[0], c[1] - a[1], c[2] - a[2]
-    apx, apy, apz = px - a[0], py - a[1], pz - a[2]
+def _point_triangle(px, py, pz, a0, a1, a2, b0, b1, b2, c0, c1, c2):
+    """Distance from p to triangle abc (Ericson's closest point), all by coordinates."""
+    abx, aby, abz = b0 - a0, b1 - a1, b2 - a2
+    acx, acy, acz = c0 - a0, c1 - a1, c2 - a2
+    apx, apy, apz = px - a0, py - a1, pz - a2
     d1 = abx * apx + aby * apy + abz * apz
     d2 = acx * apx + acy * apy + acz * apz
     if d1 <= 0.0 and d2 <= 0.0:
-        qx, qy, qz = a[0], a[1], a[2]
+        qx, qy, qz = a0, a1, a2
     else:
-        bpx, bpy, bpz = px - b[0], py - b[1], pz - b[2]
+        bpx, bpy, bpz = px - b0, py - b1, pz - b2
         d3 = abx * bpx + aby * bpy + abz * bpz
         d4 = acx * bpx + acy * bpy + acz * bpz
         if d3 >= 0.0 and d4 <= d3:
-            qx, qy, qz = b[0], b[1], b[2]
+            qx, qy, qz = b0, b1, b2
         else:
             vc = d1 * d4 - d3 * d2
             if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
                 v = d1 / (d1 - d3)
-                qx, qy, qz = a[0] + v * abx, a[1] + v * aby, a[2] + v * abz
+                qx, qy, qz = a0 + v * abx, a1 + v * aby, a2 + v * abz
             else:
-                cpx, cpy, cpz = px - c[0], py - c[1], pz - c[2]
+                cpx, cpy, cpz = px - c0, py - c1, pz - c2
                 d5 = abx * cpx + aby * cpy + abz * cpz
                 d6 = acx * cpx + acy * cpy + acz * cpz
                 if d6 >= 0.0 and d5 <= d6:
-                    qx, qy, qz = c[0], c[1], c[2]
+                    qx, qy, qz = c0, c1, c2
                 else:
                     vb = d5 * d2 - d1 * d6
                     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
                         t = d2 / (d2 - d6)
-                        qx, qy, qz = a[0] + t * acx, a[1] + t * acy, a[2] + t * acz
+                        qx, qy, qz = a0 + t * acx, a1 + t * acy, a2 + t * acz
                     else:
                         va = d3 * d6 - d5 * d4
                         if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
                             t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-                            qx = b[0] + t * (c[0] - b[0])
-                            qy = b[1] + t * (c[1] - b[1])
-                            qz = b[2] + t * (c[2] - b[2])
+                            qx = b0 + t * (c0 - b0)
+                            qy = b1 + t * (c1 - b1)
+                            qz = b2 + t * (c2 - b2)
                         else:
                             den = va + vb + vc
                             if den == 0.0:
-                                qx, qy, qz = a[0], a[1], a[2]
+                                qx, qy, qz = a0, a1, a2
                             else:
                                 v = vb / den
                                 t = vc / den
-                                qx = a[0] + abx * v + acx * t
-                                qy = a[1] + aby * v + acy * t
-                                qz = a[2] + abz * v + acz * t
+                                qx = a0 + abx * v + acx * t
+                                qy = a1 + aby * v + acy * t
+                                qz = a2 + abz * v + acz * t
     ex, ey, ez = px - qx, py - qy, pz - qz
     return np.sqrt(ex * ex + ey * ey + ez * ez)
 
 
+_PSEUDO_EPS = 1e-9  # pseudo-angle margin below which the sector test falls back to arctan2
+
+
 @njit(cache=True)
-def _fan_distance(pos, r, nx, ny, nz, ux, uy, uz, vx, vy, vz, ring, k, is_open, ang, x):
-    """Distance of leaf x from the fan of r: to the triangle of the angular sector x lies in."""
-    dx = pos[x, 0] - pos[r, 0]
-    dy = pos[x, 1] - pos[r, 1]
-    dz = pos[x, 2] - pos[r, 2]
+def _pseudo_angle(y, x):
+    """The "diamond angle" of (x, y) != 0: in [0, 4), increasing with arctan2(y, x) mod 2 pi."""
+    if y >= 0.0:
+        if x >= 0.0:
+            return y / (x + y)
+        return 1.0 - x / (y - x)
+    if x < 0.0:
+        return 2.0 - y / (-x - y)
+    return 3.0 + x / (x - y)
+
+
+@njit(cache=True)
+def _sector(t, ang, f0, k, n_tri, period):
+    """First sector j (between ring j and j + 1 counter-clockwise) holding angle t, or -1.
+
+    The ring's angles are ``ang[f0:f0 + k]``.
+    """
+    for j in range(n_tri):
+        t0 = ang[f0 + j]
+        t1 = ang[f0 + (j + 1) % k]
+        span = t1 - t0
+        if span < 0.0:
+            span += period
+        off = t - t0
+        if off < 0.0:
+            off += period
+        if off <= span:
+            return j
+    return -1
+
+
+@njit(cache=True)
+def _triangle(pos, px, py, pz, a, b, c):
+    return _point_triangle(px, py, pz, pos[a, 0], pos[a, 1], pos[a, 2], pos[b, 0], pos[b, 1],
+                           pos[b, 2], pos[c, 0], pos[c, 1], pos[c, 2])
+
+
+@njit(cache=True)
+def _fan_distance(pos, r, px, py, pz, nx, ny, nz, ux, uy, uz, vx, vy, vz, ring, f0, k, is_open,
+                  pa, ang):
+    """Distance of the point p from the fan of r: to the triangle of the angular sector p lies in.
+
+    The fan is ``ring[f0:f0 + k]``; ``pa[f0:f0 + k]`` its pseudo-angles, ``ang[f0:f0 + k]``
+    its angles, filled on first need (``ang[f0]`` is nan until then).
+    """
+    dx = px - pos[r, 0]
+    dy = py - pos[r, 1]
+    dz = pz - pos[r, 2]
     if k < 2:
         return np.sqrt(dx * dx + dy * dy + dz * dz)
     a = dx * ux + dy * uy + dz * uz
     b = dx * vx + dy * vy + dz * vz
     if a * a + b * b <= 1e-24 * (dx * dx + dy * dy + dz * dz) or a * a + b * b == 0.0:
         return abs(dx * nx + dy * ny + dz * nz)
-    t = np.arctan2(b, a)
-    # sector j: between ring[j] and ring[j + 1] counter-clockwise
     n_tri = k - 1 if is_open else k
-    sector = -1
-    for j in range(n_tri):
-        t0 = ang[j]
-        t1 = ang[(j + 1) % k]
-        span = t1 - t0
-        if span < 0.0:
-            span += 2.0 * np.pi
-        off = t - t0
-        if off < 0.0:
-            off += 2.0 * np.pi
-        if off <= span:
-            sector = j
+    t = _pseudo_angle(b, a)
+    # the sector by pseudo-angle, unless p is that near a ring direction that the
+    # rounding of arctan2 could put it on the other side
+    near = False
+    for j in range(k):
+        g = abs(t - pa[f0 + j])
+        if g < _PSEUDO_EPS or g > 4.0 - _PSEUDO_EPS:
+            near = True
             break
-    px, py, pz = pos[x, 0], pos[x, 1], pos[x, 2]
+    if not near:
+        sector = _sector(t, pa, f0, k, n_tri, 4.0)
+    else:
+        if np.isnan(ang[f0]):
+            for j in range(k):
+                q = ring[f0 + j]
+                ex = pos[q, 0] - pos[r, 0]
+                ey = pos[q, 1] - pos[r, 1]
+                ez = pos[q, 2] - pos[r, 2]
+                ang[f0 + j] = np.arctan2(ex * vx + ey * vy + ez * vz, ex * ux + ey * uy + ez * uz)
+        sector = _sector(np.arctan2(b, a), ang, f0, k, n_tri, 2.0 * np.pi)
     if sector >= 0:
-        return _point_triangle(px, py, pz, pos[r], pos[ring[sector]], pos[ring[(sector + 1) % k]])
+        return _triangle(pos, px, py, pz, r, ring[f0 + sector], ring[f0 + (sector + 1) % k])
     # in the gap of an open fan: the nearer of its two end triangles
-    d0 = _point_triangle(px, py, pz, pos[r], pos[ring[0]], pos[ring[1]])
-    d1 = _point_triangle(px, py, pz, pos[r], pos[ring[k - 2]], pos[ring[k - 1]])
+    d0 = _triangle(pos, px, py, pz, r, ring[f0], ring[f0 + 1])
+    d1 = _triangle(pos, px, py, pz, r, ring[f0 + k - 2], ring[f0 + k - 1])
     return min(d0, d1)
 
 
@@ -625,22 +850,36 @@ def node_errors(pos, nrm, child, ring_off, ring, is_open, order, lo, hi, nodes):
     """
     n = pos.shape[0]
     err = np.zeros(n)
+    # the leaves' positions in leaf order: a node's leaves are one contiguous run
+    lp = np.empty((order.shape[0], 3))
+    for i in prange(order.shape[0]):
+        x = order[i]
+        lp[i, 0] = pos[x, 0]
+        lp[i, 1] = pos[x, 1]
+        lp[i, 2] = pos[x, 2]
+    # every fan's pseudo-angles, and its angles where needed (nan: not yet)
+    pa = np.empty(ring.shape[0])
+    ang = np.empty(ring.shape[0])
     for i in prange(nodes.shape[0]):
         r = nodes[i]
-        k = ring_off[r + 1] - ring_off[r]
-        fan = ring[ring_off[r]:ring_off[r + 1]]
+        f0 = ring_off[r]
+        k = ring_off[r + 1] - f0
         nx, ny, nz = nrm[r, 0], nrm[r, 1], nrm[r, 2]
         ux, uy, uz, vx, vy, vz = _tangent(nx, ny, nz)
-        ang = np.empty(max(k, 1))
         for j in range(k):
-            dx = pos[fan[j], 0] - pos[r, 0]
-            dy = pos[fan[j], 1] - pos[r, 1]
-            dz = pos[fan[j], 2] - pos[r, 2]
-            ang[j] = np.arctan2(dx * vx + dy * vy + dz * vz, dx * ux + dy * uy + dz * uz)
+            q = ring[f0 + j]
+            dx = pos[q, 0] - pos[r, 0]
+            dy = pos[q, 1] - pos[r, 1]
+            dz = pos[q, 2] - pos[r, 2]
+            a = dx * ux + dy * uy + dz * uz
+            b = dx * vx + dy * vy + dz * vz
+            pa[f0 + j] = _pseudo_angle(b, a) if a != 0.0 or b != 0.0 else 0.0
+            ang[f0 + j] = np.nan
+        opn = is_open[r]
         e = 0.0
         for li in range(lo[r], hi[r]):
-            d = _fan_distance(pos, r, nx, ny, nz, ux, uy, uz, vx, vy, vz, fan, k,
-                              is_open[r], ang, order[li])
+            d = _fan_distance(pos, r, lp[li, 0], lp[li, 1], lp[li, 2], nx, ny, nz, ux, uy, uz,
+                              vx, vy, vz, ring, f0, k, opn, pa, ang)
             if d > e:
                 e = d
         err[r] = e
@@ -965,3 +1204,43 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
             tri[c, 2] = t
             c += 1
     return tri[:c].copy(), extra
+
+
+@njit(cache=True)
+def inner_postorder(child, n_leaves):
+    """New ids for the merged nodes: depth-first post-order of the forest, from ``n_leaves``.
+
+    Children keep smaller ids than their parents, and the nodes of one
+    subtree (which lie close together in space) get neighbouring ids, so that
+    the walks of the front touch neighbouring memory. Returns ``new_of_old``
+    (leaves keep their ids).
+    """
+    n = child.shape[0]
+    parent = np.full(n, -1, np.int64)
+    for x in range(n):
+        if child[x, 0] >= 0:
+            parent[child[x, 0]] = x
+            parent[child[x, 1]] = x
+    new = np.arange(n)
+    nxt = n_leaves
+    stack = np.empty(n + 1, np.int64)
+    for root in range(n):
+        if parent[root] >= 0 or child[root, 0] < 0:
+            continue
+        top = 0
+        stack[0] = root
+        while top >= 0:
+            x = stack[top]
+            top -= 1
+            if x < 0:
+                new[~x] = nxt
+                nxt += 1
+                continue
+            top += 1
+            stack[top] = ~x
+            for s in range(2):
+                c = child[x, s]
+                if child[c, 0] >= 0:
+                    top += 1
+                    stack[top] = c
+    return new

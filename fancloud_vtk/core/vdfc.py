@@ -662,6 +662,8 @@ class ViewDependentFanCloud:
         ring_off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         ring = np.concatenate(nodes.ring).astype(np.int64)
         opn = np.concatenate(nodes.open).astype(bool)
+        pos, nrm, col, child, ring_off, ring, opn = _renumber(
+            n_leaves, pos, nrm, col, child, ring_off, ring, opn)
         err, bound, radius = _errors(pos, nrm, child, ring_off, ring, opn)
         return cls(positions=pos, normals=nrm, children=child, ring_offsets=ring_off, ring=ring,
                    open=opn, error=err, bound=bound, radius=radius,
@@ -868,6 +870,26 @@ class ViewDependentFanCloud:
             raise ValueError("the forest's ring offsets do not match its ring")
         if len(self.ring) and (self.ring.min() < 0 or self.ring.max() >= n):
             raise ValueError("the forest's rings name nodes that do not exist")
+
+
+def _renumber(n_leaves, pos, nrm, col, child, ring_off, ring, opn):
+    """The merged nodes renumbered in depth-first post-order (leaves keep their ids).
+
+    Merge order scatters a subtree's nodes over the whole id range; the
+    post-order keeps them together, which the front's walks feel as fewer
+    cache misses on large forests.
+    """
+    new = VK.inner_postorder(child, n_leaves)
+    old = np.empty_like(new)
+    old[new] = np.arange(len(new))
+    sizes = np.diff(ring_off)[old]
+    starts = ring_off[old]
+    off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    idx = np.repeat(starts - off[:-1], sizes) + np.arange(off[-1])
+    ch = child[old]
+    ch = np.where(ch >= 0, new[np.maximum(ch, 0)], -1)
+    return (np.ascontiguousarray(pos[old]), np.ascontiguousarray(nrm[old]), col[old],
+            np.ascontiguousarray(ch), off, new[ring[idx]], opn[old])
 
 
 def _positive(name, value) -> float:
