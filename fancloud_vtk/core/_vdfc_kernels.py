@@ -1075,24 +1075,16 @@ def active_nodes(pos, radius, planes, front):
 
 
 @njit(cache=True)
-def _representative(pos, child, parent, state, a, y, up, up_tick, tick):
+def _representative(pos, child, parent, state, a, y):
     """The active stand-in for fan neighbour y of the front node a.
 
-    Below the front, the front ancestor is remembered for the frame
-    (``up[y]`` valid when ``up_tick[y] == tick``) along the whole path walked.
+    The walks are short (one or two levels on average: the front is graded),
+    so nothing is remembered between calls.
     """
-    if state[y] == 0:
-        z = y
-        while state[z] == 0 and up_tick[z] != tick:
-            z = parent[z]
-            if z < 0:
-                return -1
-        top = up[z] if state[z] == 0 else z
-        while y != z:
-            up[y] = top
-            up_tick[y] = tick
-            y = parent[y]
-        return top
+    while state[y] == 0:  # below the front: its front ancestor
+        y = parent[y]
+        if y < 0:
+            return -1
     while state[y] == REFINED:  # above the front: the child nearer to a
         c0 = child[y, 0]
         c1 = child[y, 1]
@@ -1138,8 +1130,7 @@ def _extras(mring, aidx, na):
 
 
 @njit(cache=True)
-def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring, up,
-                    up_tick, tick):
+def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring):
     """Distinct triangles of the active fans; returns (triangles, extra points).
 
     ``aidx[x]`` is x's index in ``active`` (or -1). A fan neighbour that is
@@ -1161,7 +1152,7 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
         x = active[i]
         for j in range(ring_off[x + 1] - ring_off[x]):
             mring[moff[i] + j] = _representative(pos, child, parent, state, x,
-                                                 ring[ring_off[x] + j], up, up_tick, tick)
+                                                 ring[ring_off[x] + j])
     extra = _extras(mring, aidx, na)
     ne = extra.shape[0]
     for a in range(mring.shape[0]):

@@ -739,11 +739,9 @@ class ViewDependentFanCloud:
         self._state[self.roots] = VK.FRONT
         self._front = self.roots.copy()
         self._aidx = np.full(self.n_nodes, -1, np.int64)
-        # per-frame memos of the front's tests and stand-ins (valid for one tick)
+        # the front's tests of ancestors, made once per frame (valid for one tick)
         self._tick = 0
         self._memo = np.full(self.n_nodes, -2, np.int64)
-        self._up = np.full(self.n_nodes, -1, np.int64)
-        self._up_tick = np.full(self.n_nodes, -1, np.int64)
 
     def default_d_max(self, camera) -> float:
         """The range of sight by default: from the eye to the farthest corner of the bounds."""
@@ -771,8 +769,7 @@ class ViewDependentFanCloud:
         self._aidx[active] = np.arange(len(active))
         tri, extra = VK.front_triangles(self.positions, self.children, self.parent,
                                         self._state, active, self._aidx, self.open,
-                                        self.ring_offsets, self.ring, self._up,
-                                        self._up_tick, self._tick)
+                                        self.ring_offsets, self.ring)
         n_view = len(active)
         active = np.concatenate([active, extra])
         self._aidx[active] = -1
