@@ -1112,24 +1112,6 @@ def _has_pair(mring, moff, v, s, t, closed):
 
 
 @njit(cache=True)
-def _extras(mring, aidx, na):
-    """Stand-ins that are not active yet: numbered ``na, na + 1, ...`` in ``aidx``."""
-    extra = np.empty(64, np.int64)
-    ne = 0
-    for a in range(mring.shape[0]):
-        y = mring[a]
-        if y >= 0 and aidx[y] < 0:
-            if ne >= extra.shape[0]:
-                bigger = np.empty(2 * extra.shape[0], np.int64)
-                bigger[:ne] = extra[:ne]
-                extra = bigger
-            extra[ne] = y
-            aidx[y] = na + ne
-            ne += 1
-    return extra[:ne].copy()
-
-
-@njit(cache=True)
 def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring):
     """Distinct triangles of the active fans; returns (triangles, extra points).
 
@@ -1144,20 +1126,34 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
     """
     na = active.shape[0]
     moff = np.zeros(na + 1, np.int64)
+    start = np.empty(na, np.int64)
     for i in range(na):
         x = active[i]
-        moff[i + 1] = moff[i] + ring_off[x + 1] - ring_off[x]
+        start[i] = ring_off[x]
+        moff[i + 1] = moff[i] + ring_off[x + 1] - start[i]
+    # stand-ins, numbered as points (new ones outside the view become extras) in one pass
     mring = np.empty(moff[na], np.int64)
+    extra = np.empty(64, np.int64)
+    ne = 0
     for i in range(na):
         x = active[i]
-        for j in range(ring_off[x + 1] - ring_off[x]):
-            mring[moff[i] + j] = _representative(pos, child, parent, state, x,
-                                                 ring[ring_off[x] + j])
-    extra = _extras(mring, aidx, na)
-    ne = extra.shape[0]
-    for a in range(mring.shape[0]):
-        y = mring[a]
-        mring[a] = aidx[y] if y >= 0 else -1
+        for j in range(moff[i + 1] - moff[i]):
+            y = _representative(pos, child, parent, state, x, ring[start[i] + j])
+            if y < 0:
+                mring[moff[i] + j] = -1
+                continue
+            v = aidx[y]
+            if v < 0:
+                if ne >= extra.shape[0]:
+                    bigger = np.empty(2 * extra.shape[0], np.int64)
+                    bigger[:ne] = extra[:ne]
+                    extra = bigger
+                extra[ne] = y
+                v = na + ne
+                aidx[y] = v
+                ne += 1
+            mring[moff[i] + j] = v
+    extra = extra[:ne].copy()
     # extras hold no fan: empty mapped rings after the active ones
     moff2 = np.empty(na + ne + 1, np.int64)
     moff2[:na + 1] = moff
