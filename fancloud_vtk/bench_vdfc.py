@@ -51,7 +51,6 @@ import gc
 import os
 import time
 
-import numba
 import numpy as np
 from numba import njit
 
@@ -178,42 +177,6 @@ def build_rows(b: dict, data: str, repeat: int) -> list[dict]:
 # -- frames --------------------------------------------------------------------------------
 
 
-def _front_phases(vd, cam, e_max: float, d_max: float) -> dict:
-    """One incremental front update with its phases timed: a copy of ``front_arrays``' body.
-
-    A diagnostic only: it reads the forest's internals, so a change of the
-    core may break it (the caller then reports no phases).
-    """
-    from fancloud_vtk.core import _vdfc_kernels as VK
-    from fancloud_vtk.core.vdfc import Camera
-
-    c = Camera.of(cam)
-    t = [time.perf_counter()]
-    eye, planes = c.frustum()
-    t.append(time.perf_counter())
-    front, _, visited = VK.update_front(vd.positions, vd.radius, vd.bound, vd.children,
-                                        vd.parent, vd._state, vd._front, len(vd._front), planes,
-                                        eye, e_max / d_max)
-    vd._front = front
-    t.append(time.perf_counter())
-    active = VK.active_nodes(vd.positions, vd.radius, planes, front)
-    vd._aidx[active] = np.arange(len(active))
-    t.append(time.perf_counter())
-    tri, extra = VK.front_triangles(vd.positions, vd.children, vd.parent, vd._state, active,
-                                    vd._aidx, vd.open, vd.ring_offsets, vd.ring)
-    t.append(time.perf_counter())
-    active = np.concatenate([active, extra])
-    vd._aidx[active] = -1
-    t.append(time.perf_counter())
-    names = ("frustum", "update_front", "active_nodes", "front_triangles", "bookkeeping")
-    out = {k: t[i + 1] - t[i] for i, k in enumerate(names)}
-    out["total"] = t[-1] - t[0]
-    out["visited"] = int(visited)
-    out["active"] = len(active)
-    out["triangles"] = len(tri)
-    return out
-
-
 def run_frames(vd, cams, e_max: float, d_max: float, quiet: bool) -> dict:
     """The fly-through: per frame the front update time, active points, triangles."""
     vd.reset_front()
@@ -224,30 +187,20 @@ def run_frames(vd, cams, e_max: float, d_max: float, quiet: bool) -> dict:
         frames.append({"frame": i, "ms": 1e3 * s["seconds"], "active": s["active"],
                        "in_view": s["in_view"], "border": s["border"],
                        "triangles": s["triangles"], "tpp": s["triangles_per_point"],
-                       "front": s["front"], "visited": s["visited"]})
+                       "front": s["front"], "visited": s["visited"],
+                       "ms_update": 1e3 * s["seconds_update"],
+                       "ms_triangles": 1e3 * s["seconds_triangles"]})
     _log(quiet, f"  frames: {len(frames)} fronts, mean "
          f"{np.mean([f['ms'] for f in frames[1:] or frames]):.1f} ms")
-    threads = numba.get_num_threads()
-    phases = {"threads": threads}
-    for key, n_threads in (("default", threads), ("one_thread", 1)):
-        try:
-            numba.set_num_threads(n_threads)
-            vd.reset_front()
-            gc.collect()
-            rows = [_front_phases(vd, cam, e_max, d_max) for cam in cams]
-        except Exception as exc:  # the internals changed: no breakdown
-            phases[key] = {"error": f"{type(exc).__name__}: {exc}"}
-            continue
-        finally:
-            numba.set_num_threads(threads)
-        rest = rows[1:] or rows
-        ph = {k: 1e3 * float(np.mean([r[k] for r in rest]))
-              for k in ("frustum", "update_front", "active_nodes", "front_triangles",
-                        "bookkeeping", "total")}
-        ph["max_total"] = 1e3 * float(max(r["total"] for r in rest))
-        ph["matches"] = all(r["active"] == f["active"] and r["triangles"] == f["triangles"]
-                            for r, f in zip(rows, frames, strict=True))
-        phases[key] = ph
+    rest = frames[1:] or frames
+    phases = {"default": {
+        "update_front": float(np.mean([f["ms_update"] for f in rest])),
+        "front_triangles": float(np.mean([f["ms_triangles"] for f in rest])),
+        "total": float(np.mean([f["ms"] for f in rest])),
+        "max_total": float(max(f["ms"] for f in rest))}}
+    phases["default"]["bookkeeping"] = (phases["default"]["total"]
+                                        - phases["default"]["update_front"]
+                                        - phases["default"]["front_triangles"])
     vd.reset_front()
     return {"frames": frames, "phases": phases, "e_max": e_max, "d_max": d_max}
 
@@ -269,16 +222,6 @@ def frame_summary(fr: dict, n: int) -> dict:
             "visited_mean": float(np.mean([f["visited"] for f in rest]))}
 
 
-def _one_thread_rows(fr: dict, data: str, path: str) -> list[dict]:
-    ph = fr["phases"].get("one_thread")
-    if not ph or "error" in ph:
-        return []
-    return [_row("frames: front update, mean, 1 numba thread", data,
-                 f"{path}; the path again with numba.set_num_threads(1), the update's body "
-                 f"copied and timed by phase (see the notes); max {ph['max_total']:.2f} ms; "
-                 "for information", f"{ph['total']:.2f}", "ms")]
-
-
 def frame_rows(fr: dict, s: dict, data: str, render: dict | None) -> list[dict]:
     nf = len(fr["frames"])
     path = (f"terrain_path(bounds, {nf}), e_max {fr['e_max']:g} m at d_max "
@@ -292,7 +235,6 @@ def frame_rows(fr: dict, s: dict, data: str, render: dict | None) -> list[dict]:
              _ok(s["mean_ms"] <= TARGET_MEAN_MS)),
         _row("frames: front update, max", data, upd, f"{s['max_ms']:.2f}", "ms",
              f"<= {TARGET_MAX_MS:g}", _ok(s["max_ms"] <= TARGET_MAX_MS)),
-        *_one_thread_rows(fr, data, path),
         _row("frames: first front (from the roots)", data, f"{path}; frame 1",
              f"{s['first_ms']:.2f}", "ms"),
         _row("frames: active points, mean", data,
@@ -319,25 +261,13 @@ def frame_rows(fr: dict, s: dict, data: str, render: dict | None) -> list[dict]:
 
 
 def phase_notes(phases: dict, n_frames: int) -> list[str]:
-    """One note per phase pass (numba's default threads, then one thread)."""
-    notes = []
-    for key, label in (("default", f"{phases['threads']} numba threads (the default)"),
-                       ("one_thread", "1 numba thread (numba.set_num_threads(1))")):
-        ph = phases.get(key)
-        if ph is None:
-            continue
-        if "error" in ph:
-            notes.append(f"front update phases, {label}: not measured ({ph['error']})")
-            continue
-        notes.append(
-            f"front update phases, {label}, the path again (a copy of front_arrays' body, "
-            f"mean ms over frames 2..{n_frames}): update_front {ph['update_front']:.2f}, "
-            f"active_nodes {ph['active_nodes']:.2f}, front_triangles "
-            f"{ph['front_triangles']:.2f}, frustum and bookkeeping "
-            f"{ph['frustum'] + ph['bookkeeping']:.2f}; total {ph['total']:.2f} (max "
-            f"{ph['max_total']:.2f})" + ("" if ph["matches"] else
-                                         "; its fronts differ from front_arrays': stale copy"))
-    return notes
+    """The phases of the front update, from ``Front.stats`` of the fly-through."""
+    ph = phases["default"]
+    return [f"front update phases (Front.stats, mean ms over frames 2..{n_frames}): moving "
+            f"the front {ph['update_front']:.2f}, the active fans' triangles "
+            f"{ph['front_triangles']:.2f}, the rest (arrays out) {ph['bookkeeping']:.2f}; "
+            f"total {ph['total']:.2f} (max {ph['max_total']:.2f}); the front kernels are "
+            "serial (one thread)"]
 
 
 def frames_chart(fr: dict, s: dict, path: str, label: str) -> str:

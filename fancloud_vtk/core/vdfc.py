@@ -359,8 +359,9 @@ class Front:
     bounding spheres meet the frustum, and ``border``, front nodes just
     outside it that the fans of the former reach), ``triangles``,
     ``front`` (front nodes, in and out of view), ``visited`` (nodes looked
-    at by this update), ``seconds`` (the whole update) and
-    ``triangles_per_point``.
+    at by this update), ``seconds`` (the whole update; of which
+    ``seconds_update`` moving the front and ``seconds_triangles`` the active
+    fans' triangles) and ``triangles_per_point``.
     """
 
     points: np.ndarray
@@ -766,10 +767,12 @@ class ViewDependentFanCloud:
                                                  self._front, len(self._front), planes, eye,
                                                  e_max / d_max, self._memo, self._tick)
         self._front = front
+        t1 = time.perf_counter()
         self._aidx[active] = np.arange(len(active))
         tri, extra = VK.front_triangles(self.positions, self.children, self.parent,
                                         self._state, active, self._aidx, self.open,
                                         self.ring_offsets, self.ring)
+        t2 = time.perf_counter()
         n_view = len(active)
         active = np.concatenate([active, extra])
         self._aidx[active] = -1
@@ -785,6 +788,7 @@ class ViewDependentFanCloud:
                  "triangles": len(tri), "front": len(front),
                  "visited": int(visited), "seconds": seconds,
                  "triangles_per_point": len(tri) / len(active) if len(active) else 0.0,
+                 "seconds_update": t1 - t0, "seconds_triangles": t2 - t1,
                  "e_max": e_max, "d_max": d_max}
         return Front(self.positions[active], tri, self.normals[active], pdata, stats)
 
