@@ -702,59 +702,6 @@ def leaf_order(child):
     return parent, depth, order[:n_leaves].copy(), lo, hi
 
 
-@njit(cache=True)
-def _point_triangle(px, py, pz, a0, a1, a2, b0, b1, b2, c0, c1, c2):
-    """Distance from p to triangle abc (Ericson's closest point), all by coordinates."""
-    abx, aby, abz = b0 - a0, b1 - a1, b2 - a2
-    acx, acy, acz = c0 - a0, c1 - a1, c2 - a2
-    apx, apy, apz = px - a0, py - a1, pz - a2
-    d1 = abx * apx + aby * apy + abz * apz
-    d2 = acx * apx + acy * apy + acz * apz
-    if d1 <= 0.0 and d2 <= 0.0:
-        qx, qy, qz = a0, a1, a2
-    else:
-        bpx, bpy, bpz = px - b0, py - b1, pz - b2
-        d3 = abx * bpx + aby * bpy + abz * bpz
-        d4 = acx * bpx + acy * bpy + acz * bpz
-        if d3 >= 0.0 and d4 <= d3:
-            qx, qy, qz = b0, b1, b2
-        else:
-            vc = d1 * d4 - d3 * d2
-            if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-                v = d1 / (d1 - d3)
-                qx, qy, qz = a0 + v * abx, a1 + v * aby, a2 + v * abz
-            else:
-                cpx, cpy, cpz = px - c0, py - c1, pz - c2
-                d5 = abx * cpx + aby * cpy + abz * cpz
-                d6 = acx * cpx + acy * cpy + acz * cpz
-                if d6 >= 0.0 and d5 <= d6:
-                    qx, qy, qz = c0, c1, c2
-                else:
-                    vb = d5 * d2 - d1 * d6
-                    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-                        t = d2 / (d2 - d6)
-                        qx, qy, qz = a0 + t * acx, a1 + t * acy, a2 + t * acz
-                    else:
-                        va = d3 * d6 - d5 * d4
-                        if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-                            t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-                            qx = b0 + t * (c0 - b0)
-                            qy = b1 + t * (c1 - b1)
-                            qz = b2 + t * (c2 - b2)
-                        else:
-                            den = va + vb + vc
-                            if den == 0.0:
-                                qx, qy, qz = a0, a1, a2
-                            else:
-                                v = vb / den
-                                t = vc / den
-                                qx = a0 + abx * v + acx * t
-                                qy = a1 + aby * v + acy * t
-                                qz = a2 + abz * v + acz * t
-    ex, ey, ez = px - qx, py - qy, pz - qz
-    return np.sqrt(ex * ex + ey * ey + ez * ez)
-
-
 _PSEUDO_EPS = 1e-9  # pseudo-angle margin below which the sector test falls back to arctan2
 
 
@@ -791,15 +738,28 @@ def _sector(t, ang, f0, k, n_tri, period):
 
 
 @njit(cache=True)
-def _triangle(pos, px, py, pz, a, b, c):
-    return _point_triangle(px, py, pz, pos[a, 0], pos[a, 1], pos[a, 2], pos[b, 0], pos[b, 1],
-                           pos[b, 2], pos[c, 0], pos[c, 1], pos[c, 2])
+def _plane(pos, px, py, pz, a, b, c, nx, ny, nz):
+    """Distance from p to the plane of triangle abc (extended beyond the triangle).
+
+    A degenerate triangle: the plane through a normal to (nx, ny, nz).
+    """
+    ex, ey, ez = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
+    fx, fy, fz = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
+    cx = ey * fz - ez * fy
+    cy = ez * fx - ex * fz
+    cz = ex * fy - ey * fx
+    ln = np.sqrt(cx * cx + cy * cy + cz * cz)
+    scale = (ex * ex + ey * ey + ez * ez) * (fx * fx + fy * fy + fz * fz)
+    if ln * ln <= 1e-24 * scale or ln == 0.0:
+        cx, cy, cz, ln = nx, ny, nz, 1.0
+    return abs((px - pos[a, 0]) * cx + (py - pos[a, 1]) * cy + (pz - pos[a, 2]) * cz) / ln
 
 
 @njit(cache=True)
 def _fan_distance(pos, r, px, py, pz, nx, ny, nz, ux, uy, uz, vx, vy, vz, ring, f0, k, is_open,
                   pa, ang):
-    """Distance of the point p from the fan of r: to the triangle of the angular sector p lies in.
+    """Distance of the point p from the fan of r: to the plane of the triangle of the
+    angular sector p lies in (the fan as the piecewise-planar surface it stands for).
 
     The fan is ``ring[f0:f0 + k]``; ``pa[f0:f0 + k]`` its pseudo-angles, ``ang[f0:f0 + k]``
     its angles, filled on first need (``ang[f0]`` is nan until then).
@@ -807,8 +767,8 @@ def _fan_distance(pos, r, px, py, pz, nx, ny, nz, ux, uy, uz, vx, vy, vz, ring, 
     dx = px - pos[r, 0]
     dy = py - pos[r, 1]
     dz = pz - pos[r, 2]
-    if k < 2:
-        return np.sqrt(dx * dx + dy * dy + dz * dz)
+    if k < 2:  # no triangle: the tangent plane of r
+        return abs(dx * nx + dy * ny + dz * nz)
     a = dx * ux + dy * uy + dz * uz
     b = dx * vx + dy * vy + dz * vz
     if a * a + b * b <= 1e-24 * (dx * dx + dy * dy + dz * dz) or a * a + b * b == 0.0:
@@ -835,10 +795,11 @@ def _fan_distance(pos, r, px, py, pz, nx, ny, nz, ux, uy, uz, vx, vy, vz, ring, 
                 ang[f0 + j] = np.arctan2(ex * vx + ey * vy + ez * vz, ex * ux + ey * uy + ez * uz)
         sector = _sector(np.arctan2(b, a), ang, f0, k, n_tri, 2.0 * np.pi)
     if sector >= 0:
-        return _triangle(pos, px, py, pz, r, ring[f0 + sector], ring[f0 + (sector + 1) % k])
-    # in the gap of an open fan: the nearer of its two end triangles
-    d0 = _triangle(pos, px, py, pz, r, ring[f0], ring[f0 + 1])
-    d1 = _triangle(pos, px, py, pz, r, ring[f0 + k - 2], ring[f0 + k - 1])
+        return _plane(pos, px, py, pz, r, ring[f0 + sector], ring[f0 + (sector + 1) % k],
+                      nx, ny, nz)
+    # in the gap of an open fan: the nearer of its two end triangles' planes
+    d0 = _plane(pos, px, py, pz, r, ring[f0], ring[f0 + 1], nx, ny, nz)
+    d1 = _plane(pos, px, py, pz, r, ring[f0 + k - 2], ring[f0 + k - 1], nx, ny, nz)
     return min(d0, d1)
 
 
