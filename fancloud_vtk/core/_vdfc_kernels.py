@@ -1192,3 +1192,38 @@ def inner_postorder(child, n_leaves):
                     top += 1
                     stack[top] = c
     return new
+
+
+@njit(cache=True)
+def renumbered(new, pos, nrm, col, child, ring_off, ring, opn):
+    """The node tables with node ``x`` moved to ``new[x]`` (children, rings renamed)."""
+    n = new.shape[0]
+    old = np.empty(n, np.int64)
+    for x in range(n):
+        old[new[x]] = x
+    pos2 = np.empty_like(pos)
+    nrm2 = np.empty_like(nrm)
+    col2 = np.empty_like(col)
+    child2 = np.empty_like(child)
+    opn2 = np.empty_like(opn)
+    off2 = np.zeros(n + 1, np.int64)
+    for y in range(n):
+        x = old[y]
+        off2[y + 1] = off2[y] + ring_off[x + 1] - ring_off[x]
+    ring2 = np.empty(off2[n], np.int64)
+    for y in range(n):
+        x = old[y]
+        for d in range(3):
+            pos2[y, d] = pos[x, d]
+            nrm2[y, d] = nrm[x, d]
+        for d in range(col.shape[1]):
+            col2[y, d] = col[x, d]
+        for s in range(2):
+            c = child[x, s]
+            child2[y, s] = new[c] if c >= 0 else -1
+        opn2[y] = opn[x]
+        a = off2[y]
+        for j in range(ring_off[x], ring_off[x + 1]):
+            ring2[a] = new[ring[j]]
+            a += 1
+    return pos2, nrm2, col2, child2, off2, ring2, opn2

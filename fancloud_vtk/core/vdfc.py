@@ -881,16 +881,7 @@ def _renumber(n_leaves, pos, nrm, col, child, ring_off, ring, opn):
     cache misses on large forests.
     """
     new = VK.inner_postorder(child, n_leaves)
-    old = np.empty_like(new)
-    old[new] = np.arange(len(new))
-    sizes = np.diff(ring_off)[old]
-    starts = ring_off[old]
-    off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    idx = np.repeat(starts - off[:-1], sizes) + np.arange(off[-1])
-    ch = child[old]
-    ch = np.where(ch >= 0, new[np.maximum(ch, 0)], -1)
-    return (np.ascontiguousarray(pos[old]), np.ascontiguousarray(nrm[old]), col[old],
-            np.ascontiguousarray(ch), off, new[ring[idx]], opn[old])
+    return VK.renumbered(new, pos, nrm, np.ascontiguousarray(col), child, ring_off, ring, opn)
 
 
 def _positive(name, value) -> float:
