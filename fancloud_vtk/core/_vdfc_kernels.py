@@ -725,7 +725,7 @@ def _sector(t, ang, f0, k, n_tri, period):
     """
     for j in range(n_tri):
         t0 = ang[f0 + j]
-        t1 = ang[f0 + (j + 1) % k]
+        t1 = ang[f0 + j + 1] if j + 1 < k else ang[f0]  # no integer modulo: it is slow
         span = t1 - t0
         if span < 0.0:
             span += period
@@ -738,11 +738,8 @@ def _sector(t, ang, f0, k, n_tri, period):
 
 
 @njit(cache=True)
-def _plane(pos, px, py, pz, a, b, c, nx, ny, nz):
-    """Distance from p to the plane of triangle abc (extended beyond the triangle).
-
-    A degenerate triangle: the plane through a normal to (nx, ny, nz).
-    """
+def _plane_normal(pos, a, b, c, nx, ny, nz, out, i):
+    """``out[i]``: the unit normal of triangle abc (a degenerate one: (nx, ny, nz))."""
     ex, ey, ez = pos[b, 0] - pos[a, 0], pos[b, 1] - pos[a, 1], pos[b, 2] - pos[a, 2]
     fx, fy, fz = pos[c, 0] - pos[a, 0], pos[c, 1] - pos[a, 1], pos[c, 2] - pos[a, 2]
     cx = ey * fz - ez * fy
@@ -751,13 +748,14 @@ def _plane(pos, px, py, pz, a, b, c, nx, ny, nz):
     ln = np.sqrt(cx * cx + cy * cy + cz * cz)
     scale = (ex * ex + ey * ey + ez * ez) * (fx * fx + fy * fy + fz * fz)
     if ln * ln <= 1e-24 * scale or ln == 0.0:
-        cx, cy, cz, ln = nx, ny, nz, 1.0
-    return abs((px - pos[a, 0]) * cx + (py - pos[a, 1]) * cy + (pz - pos[a, 2]) * cz) / ln
+        out[i, 0], out[i, 1], out[i, 2] = nx, ny, nz
+    else:
+        out[i, 0], out[i, 1], out[i, 2] = cx / ln, cy / ln, cz / ln
 
 
 @njit(cache=True)
 def _fan_distance(pos, r, px, py, pz, nx, ny, nz, ux, uy, uz, vx, vy, vz, ring, f0, k, is_open,
-                  pa, ang):
+                  pa, ang, pn):
     """Distance of the point p from the fan of r: to the plane of the triangle of the
     angular sector p lies in (the fan as the piecewise-planar surface it stands for).
 
@@ -795,12 +793,12 @@ def _fan_distance(pos, r, px, py, pz, nx, ny, nz, ux, uy, uz, vx, vy, vz, ring, 
                 ang[f0 + j] = np.arctan2(ex * vx + ey * vy + ez * vz, ex * ux + ey * uy + ez * uz)
         sector = _sector(np.arctan2(b, a), ang, f0, k, n_tri, 2.0 * np.pi)
     if sector >= 0:
-        return _plane(pos, px, py, pz, r, ring[f0 + sector], ring[f0 + (sector + 1) % k],
-                      nx, ny, nz)
+        g = f0 + sector
+        return abs(dx * pn[g, 0] + dy * pn[g, 1] + dz * pn[g, 2])
     # in the gap of an open fan: the nearer of its two end triangles' planes
-    d0 = _plane(pos, px, py, pz, r, ring[f0], ring[f0 + 1], nx, ny, nz)
-    d1 = _plane(pos, px, py, pz, r, ring[f0 + k - 2], ring[f0 + k - 1], nx, ny, nz)
-    return min(d0, d1)
+    g = f0 + k - 2
+    return min(abs(dx * pn[f0, 0] + dy * pn[f0, 1] + dz * pn[f0, 2]),
+               abs(dx * pn[g, 0] + dy * pn[g, 1] + dz * pn[g, 2]))
 
 
 @njit(cache=True, parallel=True)
@@ -821,6 +819,7 @@ def node_errors(pos, nrm, child, ring_off, ring, is_open, order, lo, hi, nodes):
     # every fan's pseudo-angles, and its angles where needed (nan: not yet)
     pa = np.empty(ring.shape[0])
     ang = np.empty(ring.shape[0])
+    pn = np.empty((ring.shape[0], 3))  # unit normal of each sector's triangle
     for i in prange(nodes.shape[0]):
         r = nodes[i]
         f0 = ring_off[r]
@@ -836,11 +835,12 @@ def node_errors(pos, nrm, child, ring_off, ring, is_open, order, lo, hi, nodes):
             b = dx * vx + dy * vy + dz * vz
             pa[f0 + j] = _pseudo_angle(b, a) if a != 0.0 or b != 0.0 else 0.0
             ang[f0 + j] = np.nan
+            _plane_normal(pos, r, q, ring[f0 + (j + 1) % k], nx, ny, nz, pn, f0 + j)
         opn = is_open[r]
         e = 0.0
         for li in range(lo[r], hi[r]):
             d = _fan_distance(pos, r, lp[li, 0], lp[li, 1], lp[li, 2], nx, ny, nz, ux, uy, uz,
-                              vx, vy, vz, ring, f0, k, opn, pa, ang)
+                              vx, vy, vz, ring, f0, k, opn, pa, ang, pn)
             if d > e:
                 e = d
         err[r] = e

@@ -406,7 +406,9 @@ def _check_blocks(blocks, fc: FanCloud) -> tuple[list[np.ndarray], np.ndarray]:
                              f"got {a.dtype} {a.shape}")
         if a.min() < 0 or a.max() >= n:
             raise ValueError(f"block {i} has point indices outside 0..{n - 1}")
-        a = np.unique(a.astype(np.int64))
+        a = a.astype(np.int64)
+        if not (a[1:] > a[:-1]).all():  # sorted without repeats already: the usual case
+            a = np.unique(a)
         out.append(a)
     if not out:
         raise ValueError("blocks is empty")
@@ -655,14 +657,14 @@ class ViewDependentFanCloud:
 
     @classmethod
     def _from_nodes(cls, nodes: _Nodes, n_leaves, merge, w, color_name, uint8):
-        pos = np.ascontiguousarray(np.concatenate(nodes.pos))
-        nrm = np.ascontiguousarray(np.concatenate(nodes.nrm))
+        pos = np.concatenate(nodes.pos)
+        nrm = np.concatenate(nodes.nrm)
         col = np.concatenate(nodes.col)
-        child = np.ascontiguousarray(np.concatenate(nodes.child))
-        sizes = np.concatenate(nodes.ring_sizes)
-        ring_off = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-        ring = np.concatenate(nodes.ring).astype(np.int64)
-        opn = np.concatenate(nodes.open).astype(bool)
+        child = np.concatenate(nodes.child)
+        ring_off = np.zeros(len(pos) + 1, np.int64)
+        np.cumsum(np.concatenate(nodes.ring_sizes), out=ring_off[1:])
+        ring = np.concatenate(nodes.ring, dtype=np.int64)
+        opn = np.concatenate(nodes.open, dtype=bool)
         pos, nrm, col, child, ring_off, ring, opn = _renumber(
             n_leaves, pos, nrm, col, child, ring_off, ring, opn)
         err, bound, radius = _errors(pos, nrm, child, ring_off, ring, opn)
