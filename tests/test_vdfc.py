@@ -391,6 +391,38 @@ def test_blocks_agree_on_their_shared_points_for_random_cameras(blocked, terrain
                     assert mine[pos_in_front[s]]
 
 
+def test_blocks_equal_the_plain_forest_where_no_boundary_is_involved(blocked, terrain):
+    vb, blocks = blocked
+    count = np.zeros(terrain.n_points, int)
+    for b in blocks:
+        count[b] += 1
+    # the forest without blocks, following the influence of the (would-be) shared points
+    vp = ViewDependentFanCloud.build(terrain, influence=count >= 2)
+    assert vb.influenced is not None and vb.influenced[:terrain.n_points][count >= 2].all()
+    twin = {tuple(np.sort(vb.leaves(r))): r for r in np.flatnonzero(~vb.is_leaf)}
+    clean = [r for r in np.flatnonzero(~vp.is_leaf) if not vp.influenced[r]]
+    assert len(clean) > 0.05 * vp.n_leaves
+    for r in clean:
+        t = twin[tuple(np.sort(vp.leaves(r)))]
+        assert np.array_equal(vp.positions[r], vb.positions[t])
+        assert vp.error[r] == vb.error[t] and vp.bound[r] == vb.bound[t]
+        assert vp.radius[r] == vb.radius[t]
+        assert sorted(vp.leaves(vp.children[r, 0]).tolist()) in (
+            sorted(vb.leaves(vb.children[t, 0]).tolist()),
+            sorted(vb.leaves(vb.children[t, 1]).tolist()))
+    # so, for any camera, those nodes are refined in one forest exactly when in the other
+    ids_p = np.array(clean)
+    ids_b = np.array([twin[tuple(np.sort(vp.leaves(r)))] for r in clean])
+    rng = np.random.default_rng(11)
+    for _ in range(4):
+        eye = (rng.uniform(0, 4), rng.uniform(-4, 0), rng.uniform(1, 4))
+        cam = (eye, (rng.uniform(1, 3), rng.uniform(1, 3), 0.0), (0, 0, 1), 50.0)
+        e_max = rng.uniform(0.002, 0.05)
+        rp = _scratch(vp, cam, e_max, 8.0)[0]
+        rb = _scratch(vb, cam, e_max, 8.0)[0]
+        assert np.array_equal(rp[ids_p], rb[ids_b])
+
+
 def test_blocks_must_tile_the_data(terrain):
     blocks = terrain_blocks((N, N), (32, 32))
     with pytest.raises(ValueError, match="do not tile"):

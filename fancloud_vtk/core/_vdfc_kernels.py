@@ -135,6 +135,7 @@ _ID = 2  # the node id in the slot (-1: none)
 _HEAD = 4  # first neighbour column
 _LOCKED = 1
 _OPEN = 2
+_TAINT = 4  # built from, or next to, a marked node (see merge_forest)
 
 
 if sys.platform.startswith("linux"):
@@ -364,7 +365,7 @@ def _key_of(w, dist, curv, cc, cterm):
 
 @njit(cache=True, nogil=True)
 def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method, min_alive,
-                 width):
+                 width, taint0):
     """Merge nodes until ``min_alive`` remain or no pair can merge.
 
     Inputs are ``m`` nodes (leaves or nodes of an earlier build) with their
@@ -373,7 +374,14 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
     col (k, c), open (k,), ring_off (k + 1,), ring, alive (m + k,),
     out_off, out_adj)``: the ``k`` new nodes, their children and fans at
     merge time, which nodes are left, and the neighbour sets of those left
-    (CSR over the alive ids in increasing order).
+    (CSR over the alive ids in increasing order), then ``taint (k,)`` of the
+    new nodes when made and ``alive_taint (m + k,)`` of the nodes left.
+
+    ``taint0`` marks input nodes whose influence is followed: a merge is
+    tainted when p, q, a neighbour of either, or a neighbour of a neighbour
+    of p (whose entropies chose q) is tainted; a tainted merge taints r and
+    r's neighbours. What no taint reaches was built from the same data in
+    the same order whatever happened at the marked nodes (the blocks' check).
 
     Internally every table is indexed by *slot*: node x of the input sits in
     slot x and a merged node takes the slot of its p, so that the slots keep
@@ -412,6 +420,8 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
             fl |= _LOCKED
         if open0[x]:
             fl |= _OPEN
+        if taint0[x]:
+            fl |= _TAINT
         R[s, _FLAGS] = fl
         R[s, _ID] = x
     Cc = C if nc > 0 else np.zeros((0, 3))
@@ -449,6 +459,8 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
     onrm = np.empty((m, 3))
     ocol = np.zeros((m, nc))
     oopn = np.zeros(m, np.bool_)
+    otaint = np.zeros(m, np.bool_)
+    track = taint0.any()
     ring_off = np.zeros(m + 1, np.int64)
     ring = np.empty(8 * m + 64, np.int64)
     buf = np.empty(2 * width + 2, np.int64)
@@ -512,6 +524,19 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
         if sq < 0:
             continue  # p waits outside the heap until its neighbourhood changes
         q = np.int64(R[sq, _ID])
+        tainted = False
+        if track:
+            tainted = ((R[sp, _FLAGS] | R[sq, _FLAGS]) & _TAINT) != 0
+            for b in range(R[sq, _LEN]):
+                if R[R[sq, _HEAD + b], _FLAGS] & _TAINT:
+                    tainted = True
+            for b in range(lp):
+                y = R[sp, _HEAD + b]
+                if R[y, _FLAGS] & _TAINT:
+                    tainted = True
+                for e in range(R[y, _LEN]):
+                    if R[R[y, _HEAD + e], _FLAGS] & _TAINT:
+                        tainted = True
         if hpos[sq] >= 0:
             size = _iremove(hbuf, hk, hpos, hb, hpos[sq], size)
         r = m + k
@@ -590,13 +615,16 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
             R[sp, _HEAD + b] = buf[b]
         R[sp, _LEN] = c
         R[sp, _ID] = r
-        R[sp, _FLAGS] = _OPEN if is_open else 0
+        R[sp, _FLAGS] = (_OPEN if is_open else 0) | (_TAINT if tainted else 0)
+        otaint[k] = tainted
         R[sq, _ID] = -1
         R[sq, _FLAGS] = 0
         n_alive -= 1
         # the neighbours see r instead of p and q
         for b in range(c):
             sx = buf[b]
+            if tainted:
+                R[sx, _FLAGS] |= _TAINT
             e = 0
             for a in range(R[sx, _LEN]):
                 z = R[sx, _HEAD + a]
@@ -634,6 +662,10 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
         if x >= 0:
             alive[x] = True
             slot_of[x] = s
+    alive_taint = np.zeros(total, np.bool_)
+    for x in range(total):
+        if alive[x]:
+            alive_taint[x] = (R[slot_of[x], _FLAGS] & _TAINT) != 0
     out_off = np.zeros(total + 1, np.int64)
     for x in range(total):
         out_off[x + 1] = out_off[x] + (R[slot_of[x], _LEN] if alive[x] else 0)
@@ -647,7 +679,7 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
             out_adj[out_off[x]:out_off[x + 1]] = np.sort(row)
     return (k, child[:k].copy(), opos[:k].copy(), onrm[:k].copy(),
             ocol[:k].copy(), oopn[:k].copy(), ring_off[:k + 1].copy(),
-            ring[:ring_off[k]].copy(), alive, out_off, out_adj)
+            ring[:ring_off[k]].copy(), alive, out_off, out_adj, otaint[:k].copy(), alive_taint)
 
 
 # -- tables of the built forest ---------------------------------------------------------

@@ -444,6 +444,7 @@ class _Nodes:
         self.child = [np.full((n, 2), -1, np.int64)]
         self.ring_sizes = [np.diff(fc.offsets)]
         self.ring = [fc.ring]
+        self.taint = [np.zeros(n, np.bool_)]
         self.count = n
 
     def absorb(self, res, ids):
@@ -460,6 +461,7 @@ class _Nodes:
         self.child.append(gid[child])
         self.ring_sizes.append(np.diff(ring_off))
         self.ring.append(gid[ring])
+        self.taint.append(res[11])
         self.count += k
         return gid
 
@@ -518,6 +520,8 @@ class ViewDependentFanCloud:
         self.color_uint8 = bool(color_uint8)
         self.merge = merge
         self.weights = tuple(float(v) for v in weights)
+        #: with build(influence=...) or blocks: the nodes the followed points reached
+        self.influenced = None
         self.parent, self.level, self._order, self._lo, self._hi = VK.leaf_order(children)
         self.roots = np.flatnonzero(self.parent < 0)
         self.reset_front()
@@ -525,7 +529,7 @@ class ViewDependentFanCloud:
     # -- building ---------------------------------------------------------------
     @classmethod
     def build(cls, fancloud, merge: str = "entropy", *, weights=VDFC_WEIGHTS, blocks=None,
-              n_roots: int = 1, colors=None, workers: int | None = None,
+              n_roots: int = 1, colors=None, workers: int | None = None, influence=None,
               progress=None) -> ViewDependentFanCloud:
         """Build the merge forest of a fan cloud or triangle mesh.
 
@@ -552,6 +556,13 @@ class ViewDependentFanCloud:
             cloud's colour array if it has one).
         workers : int, optional
             Threads for the blocks (default: the number of CPUs).
+        influence : array of bool or point indices, optional
+            Points whose influence to follow: ``influenced[node]`` is True for
+            the nodes whose merge involved them or a node they reached (see
+            docs/vdfc.md). With ``blocks``, the shared points are followed too.
+            The rest of the forest was built from the same data in the same
+            order whatever happened at those points: this is how the blocks'
+            result is checked against a build without blocks.
         progress : callable, optional
             ``progress(fraction, message)``.
 
@@ -601,13 +612,16 @@ class ViewDependentFanCloud:
         adj_off, adj = VK.symmetric_adjacency(fc.offsets, fc.ring, n)
         width = max(WIDTH, int(np.diff(adj_off).max(initial=0)) + 8)
         nodes = _Nodes(fc, col)
+        taint = np.zeros(n, np.bool_) if influence is None else _influence_mask(influence, n)
+        nodes.taint[0] = taint
 
         def run(ids, off, nb, locked, min_alive):
             return VK.merge_forest(fc.points[ids] if ids is not None else fc.points,
                                    fc.normals[ids] if ids is not None else fc.normals,
                                    col[ids] if ids is not None else col,
                                    fc.open[ids] if ids is not None else fc.open,
-                                   off, nb, locked, w, dbar, method, min_alive, width)
+                                   off, nb, locked, w, dbar, method, min_alive, width,
+                                   taint[ids] if ids is not None else taint)
 
         if blocks is None:
             report(0.0, "merging")
@@ -615,6 +629,7 @@ class ViewDependentFanCloud:
             nodes.absorb(res, np.arange(n, dtype=np.int64))
         else:
             blist, shared = _check_blocks(blocks, fc)
+            taint |= shared
             report(0.0, f"merging {len(blist)} blocks")
 
             def one(ids):
@@ -628,11 +643,13 @@ class ViewDependentFanCloud:
             else:
                 results = [one(ids) for ids in blist]
             alive_ids, edges = [], []
+            alive_taint = np.zeros(n + sum(r[0] for r in results), np.bool_)
             for ids, res in zip(blist, results, strict=True):
                 gid = nodes.absorb(res, ids)
                 a, e = _alive_edges(res, gid)
                 alive_ids.append(a)
                 edges.append(e)
+                alive_taint[gid[res[12]]] = True
             report(0.6, "uniting the blocks")
             # the united graph: shared points keep the neighbours of every block
             keep = np.unique(np.concatenate(alive_ids))
@@ -648,15 +665,17 @@ class ViewDependentFanCloud:
             colk = np.concatenate(nodes.col)[keep]
             opn = np.concatenate(nodes.open)[keep]
             res = VK.merge_forest(pos, nrm, colk, opn, off.astype(np.int64), dst.astype(np.int64),
-                                  np.zeros(len(keep), np.bool_), w, dbar, method, n_roots, width)
+                                  np.zeros(len(keep), np.bool_), w, dbar, method, n_roots, width,
+                                  alive_taint[keep])
             nodes.absorb(res, keep)
         report(0.8, "errors of the nodes")
-        vd = cls._from_nodes(nodes, n, merge, w, name, uint8)
+        vd = cls._from_nodes(nodes, n, merge, w, name, uint8,
+                             np.concatenate(nodes.taint) if taint.any() else None)
         report(1.0, "done")
         return vd
 
     @classmethod
-    def _from_nodes(cls, nodes: _Nodes, n_leaves, merge, w, color_name, uint8):
+    def _from_nodes(cls, nodes: _Nodes, n_leaves, merge, w, color_name, uint8, influenced=None):
         pos = np.concatenate(nodes.pos)
         nrm = np.concatenate(nodes.nrm)
         col = np.concatenate(nodes.col)
@@ -665,13 +684,19 @@ class ViewDependentFanCloud:
         np.cumsum(np.concatenate(nodes.ring_sizes), out=ring_off[1:])
         ring = np.concatenate(nodes.ring, dtype=np.int64)
         opn = np.concatenate(nodes.open, dtype=bool)
-        pos, nrm, col, child, ring_off, ring, opn = _renumber(
+        pos, nrm, col, child, ring_off, ring, opn, new = _renumber(
             n_leaves, pos, nrm, col, child, ring_off, ring, opn)
+        if influenced is not None:
+            moved = np.empty_like(influenced)
+            moved[new] = influenced
+            influenced = moved
         err, bound, radius = _errors(pos, nrm, child, ring_off, ring, opn)
-        return cls(positions=pos, normals=nrm, children=child, ring_offsets=ring_off, ring=ring,
-                   open=opn, error=err, bound=bound, radius=radius,
-                   colors=col if col.shape[1] else None, color_name=color_name,
-                   color_uint8=uint8, merge=merge, weights=w)
+        vd = cls(positions=pos, normals=nrm, children=child, ring_offsets=ring_off, ring=ring,
+                 open=opn, error=err, bound=bound, radius=radius,
+                 colors=col if col.shape[1] else None, color_name=color_name,
+                 color_uint8=uint8, merge=merge, weights=w)
+        vd.influenced = influenced
+        return vd
 
     def add_object(self, other, merge: str | None = None, **build_kwargs) -> ViewDependentFanCloud:
         """A new forest with ``other``'s trees added (a building, a ledge, any shape).
@@ -883,7 +908,21 @@ def _renumber(n_leaves, pos, nrm, col, child, ring_off, ring, opn):
     cache misses on large forests.
     """
     new = VK.inner_postorder(child, n_leaves)
-    return VK.renumbered(new, pos, nrm, np.ascontiguousarray(col), child, ring_off, ring, opn)
+    return (*VK.renumbered(new, pos, nrm, np.ascontiguousarray(col), child, ring_off, ring, opn),
+            new)
+
+
+def _influence_mask(influence, n) -> np.ndarray:
+    a = np.asarray(influence)
+    if a.dtype == np.bool_:
+        if a.shape != (n,):
+            raise ValueError(f"influence must be {n} bools or point indices, got shape {a.shape}")
+        return a.copy()
+    if a.dtype.kind not in "iu" or a.ndim != 1 or (a.size and (a.min() < 0 or a.max() >= n)):
+        raise ValueError(f"influence must be {n} bools or point indices in 0..{n - 1}")
+    mask = np.zeros(n, np.bool_)
+    mask[a] = True
+    return mask
 
 
 def _positive(name, value) -> float:
