@@ -39,13 +39,14 @@ from __future__ import annotations
 import os
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from . import _entropy_kernels as EK
 from . import _vdfc_kernels as VK
 from .entropy import as_colors, as_fan_cloud, check_weights
+from .mesh import TriangleMesh
 from .model import FanCloud, find_color_array
 from .validation import FanCloudInputError
 
@@ -350,8 +351,11 @@ class Camera:
 
 
 @dataclass(eq=False)
-class Front:
+class Front(TriangleMesh):
     """The active front for one camera: points, distinct triangles, point arrays.
+
+    A :class:`~fancloud_vtk.TriangleMesh` (``points``, ``triangles``,
+    ``normals``, ``point_data``, ``stats``) over the active points only.
 
     ``point_data`` holds ``node_id`` (forest node), ``level`` (depth below
     its root), ``error`` (e(r); 0 on original points) and the colours if the
@@ -363,12 +367,6 @@ class Front:
     ``seconds_update`` moving the front and ``seconds_triangles`` the active
     fans' triangles) and ``triangles_per_point``.
     """
-
-    points: np.ndarray
-    triangles: np.ndarray
-    normals: np.ndarray
-    point_data: dict = field(default_factory=dict)
-    stats: dict = field(default_factory=dict)
 
     @property
     def n_points(self) -> int:
