@@ -838,6 +838,8 @@ def node_errors(pos, nrm, child, ring_off, ring, is_open, order, lo, hi, nodes):
     """e(r) for the inner ``nodes``: the largest distance of its leaves from its fan.
 
     0 on leaves. ``nodes`` in a shuffled order spreads the big nodes over the threads.
+    The nodes go in chunks, each with its own scratch for one fan (no allocation per
+    node, no table the size of all fans).
     """
     n = pos.shape[0]
     err = np.zeros(n)
@@ -848,34 +850,42 @@ def node_errors(pos, nrm, child, ring_off, ring, is_open, order, lo, hi, nodes):
         lp[i, 0] = pos[x, 0]
         lp[i, 1] = pos[x, 1]
         lp[i, 2] = pos[x, 2]
-    # every fan's pseudo-angles, and its angles where needed (nan: not yet)
-    pa = np.empty(ring.shape[0])
-    ang = np.empty(ring.shape[0])
-    pn = np.empty((ring.shape[0], 3))  # unit normal of each sector's triangle
-    for i in prange(nodes.shape[0]):
-        r = nodes[i]
-        f0 = ring_off[r]
-        k = ring_off[r + 1] - f0
-        nx, ny, nz = nrm[r, 0], nrm[r, 1], nrm[r, 2]
-        ux, uy, uz, vx, vy, vz = _tangent(nx, ny, nz)
-        for j in range(k):
-            q = ring[f0 + j]
-            dx = pos[q, 0] - pos[r, 0]
-            dy = pos[q, 1] - pos[r, 1]
-            dz = pos[q, 2] - pos[r, 2]
-            a = dx * ux + dy * uy + dz * uz
-            b = dx * vx + dy * vy + dz * vz
-            pa[f0 + j] = _pseudo_angle(b, a) if a != 0.0 or b != 0.0 else 0.0
-            ang[f0 + j] = np.nan
-            _plane_normal(pos, r, q, ring[f0 + (j + 1) % k], nx, ny, nz, pn, f0 + j)
-        opn = is_open[r]
-        e = 0.0
-        for li in range(lo[r], hi[r]):
-            d = _fan_distance(pos, r, lp[li, 0], lp[li, 1], lp[li, 2], nx, ny, nz, ux, uy, uz,
-                              vx, vy, vz, ring, f0, k, opn, pa, ang, pn)
-            if d > e:
-                e = d
-        err[r] = e
+    width = 1
+    for r in range(n):
+        width = max(width, ring_off[r + 1] - ring_off[r])
+    n_nodes = nodes.shape[0]
+    n_chunks = min(256, max(1, n_nodes))
+    for chunk in prange(n_chunks):
+        fan = np.empty(width, np.int64)
+        pa = np.empty(width)  # the fan's pseudo-angles
+        ang = np.empty(width)  # its angles, filled on first need (nan: not yet)
+        pn = np.empty((width, 3))  # unit normal of each sector's triangle
+        for i in range(chunk * n_nodes // n_chunks, (chunk + 1) * n_nodes // n_chunks):
+            r = nodes[i]
+            f0 = ring_off[r]
+            k = ring_off[r + 1] - f0
+            nx, ny, nz = nrm[r, 0], nrm[r, 1], nrm[r, 2]
+            ux, uy, uz, vx, vy, vz = _tangent(nx, ny, nz)
+            for j in range(k):
+                fan[j] = ring[f0 + j]
+            for j in range(k):
+                q = fan[j]
+                dx = pos[q, 0] - pos[r, 0]
+                dy = pos[q, 1] - pos[r, 1]
+                dz = pos[q, 2] - pos[r, 2]
+                a = dx * ux + dy * uy + dz * uz
+                b = dx * vx + dy * vy + dz * vz
+                pa[j] = _pseudo_angle(b, a) if a != 0.0 or b != 0.0 else 0.0
+                ang[j] = np.nan
+                _plane_normal(pos, r, q, fan[j + 1] if j + 1 < k else fan[0], nx, ny, nz, pn, j)
+            opn = is_open[r]
+            e = 0.0
+            for li in range(lo[r], hi[r]):
+                d = _fan_distance(pos, r, lp[li, 0], lp[li, 1], lp[li, 2], nx, ny, nz, ux, uy,
+                                  uz, vx, vy, vz, fan, 0, k, opn, pa, ang, pn)
+                if d > e:
+                    e = d
+            err[r] = e
     return err
 
 
