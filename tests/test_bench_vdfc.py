@@ -77,7 +77,8 @@ def test_bench_vdfc_smoke(tmp_path, capsys):
     raw = json.loads((out / "vdfc.json").read_text())
     frames = raw["frames"]["frames"]
     assert len(frames) == 8 and all(f["active"] > 0 for f in frames)
-    assert raw["build"]["n"] == 120 * 120 and raw["build"]["blocks"] == 4
+    assert raw["build"]["n"] == 120 * 120 and raw["build"]["blocks"] == 64
+    assert raw["build"]["half_blocks"] == 4
     assert len(raw["render"]["rows"]) == 2
     lines = (out / "vdfc_frames.csv").read_text().splitlines()
     assert len(lines) == 9 and lines[0].startswith("frame,")
