@@ -27,10 +27,15 @@ from __future__ import annotations
 import sys
 
 import numpy as np
-from llvmlite import ir
-from numba import njit, prange, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+from numba import njit, prange
+
+try:  # the huge-page hint below needs numba's code generation internals
+    from llvmlite import ir
+    from numba import types
+    from numba.core import cgutils
+    from numba.extending import intrinsic
+except ImportError:  # pragma: no cover - other numba versions: no hint
+    intrinsic = None
 
 from ._mesh_kernels import _tangent
 
@@ -138,7 +143,7 @@ _OPEN = 2
 _TAINT = 4  # built from, or next to, a marked node (see merge_forest)
 
 
-if sys.platform.startswith("linux"):
+if sys.platform.startswith("linux") and intrinsic is not None:
     @intrinsic
     def _madvise(typingctx, addr, length, advice):
         sig = types.int32(types.uintp, types.uintp, types.int32)
@@ -167,7 +172,7 @@ if sys.platform.startswith("linux"):
 else:
     @njit(cache=True)
     def _huge_pages(a):
-        """No-op away from Linux."""
+        """No-op away from Linux (or without numba's internals)."""
 
 
 @njit(cache=True)
