@@ -1071,18 +1071,6 @@ def update_front(pos, radius, bound, child, parent, state, front, n_front, plane
 
 
 @njit(cache=True)
-def active_nodes(pos, radius, planes, front):
-    """The front nodes in the frustum (their bounding sphere meets it), in front order."""
-    out = np.empty(front.shape[0], np.int64)
-    m = 0
-    for i in range(front.shape[0]):
-        if _visible(pos, radius, planes, front[i]):
-            out[m] = front[i]
-            m += 1
-    return out[:m].copy()
-
-
-@njit(cache=True)
 def _representative(pos, child, parent, state, a, y):
     """The active stand-in for fan neighbour y of the front node a.
 
