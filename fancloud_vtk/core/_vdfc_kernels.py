@@ -272,7 +272,11 @@ def _ikey(hv, hk, hpos, base, s, key, size):
 
 @njit(cache=True)
 def _terms(F, C, R, s, dbar):
-    """``point_terms`` of the node in slot s (same arithmetic, on the slot tables)."""
+    """``point_terms`` of the node in slot s (same arithmetic, on the slot tables).
+
+    A copy, not a call: ``point_terms`` on strided views of ``F`` gives the
+    same bits but made the 1M-point build about 9% slower (measured).
+    """
     k = R[s, _LEN]
     if k == 0:
         return 0.0, 0.0, 0.0
