@@ -750,9 +750,14 @@ class ViewDependentFanCloud:
         return self._order[self._lo[node]:self._hi[node]]
 
     def bounds(self) -> np.ndarray:
-        """``(xmin, xmax, ymin, ymax, zmin, zmax)`` of the original points."""
-        p = self.positions[self.is_leaf]
-        return np.column_stack([p.min(axis=0), p.max(axis=0)]).ravel()
+        """``(xmin, xmax, ymin, ymax, zmin, zmax)`` of the original points.
+
+        Computed once: the default range of sight and ``e_max`` ask for it every frame.
+        """
+        if getattr(self, "_bounds", None) is None:
+            p = self.positions[self.is_leaf]
+            self._bounds = np.column_stack([p.min(axis=0), p.max(axis=0)]).ravel()
+        return self._bounds.copy()
 
     def __repr__(self) -> str:
         return (f"ViewDependentFanCloud({self.n_leaves} points, {self.n_nodes} nodes, "
