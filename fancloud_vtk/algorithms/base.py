@@ -83,7 +83,10 @@ class FanCloudAlgorithm(VTKPythonAlgorithmBase):
     def RequestData(self, request, inInfo, outInfo):
         self.last_error = None
         try:
-            inputs = [self.GetInputData(inInfo, i, 0) for i in range(self.GetNumberOfInputPorts())]
+            # an optional port with nothing connected gives None
+            inputs = [self.GetInputData(inInfo, i, 0)
+                      if inInfo[i].GetNumberOfInformationObjects() else None
+                      for i in range(self.GetNumberOfInputPorts())]
             output = self.GetOutputData(outInfo, 0)
             result = self.execute(*inputs)
             output.ShallowCopy(result)

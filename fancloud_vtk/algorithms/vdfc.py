@@ -20,7 +20,6 @@ import os
 import time
 
 import numpy as np
-from vtkmodules.vtkCommonCore import vtkOutputWindow
 from vtkmodules.vtkCommonDataModel import vtkImageData
 
 from fancloud_vtk.core.vdfc import Camera, ViewDependentFanCloud, terrain_blocks, terrain_fan_cloud
@@ -188,22 +187,6 @@ class FanCloudViewDependentFilter(FanCloudAlgorithm):
     def FillInputPortInformation(self, port, info):
         info.Set(self.INPUT_REQUIRED_DATA_TYPE(), "vtkDataSet")
         info.Set(self.INPUT_IS_OPTIONAL(), 1)
-        return 1
-
-    def RequestData(self, request, inInfo, outInfo):
-        # the input is optional (a forest given with SetForest needs none)
-        self.last_error = None
-        try:
-            dataset = None
-            if inInfo and inInfo[0].GetNumberOfInformationObjects():
-                dataset = self.GetInputData(inInfo, 0, 0)
-            result = self.execute(dataset)
-            self.GetOutputData(outInfo, 0).ShallowCopy(result)
-        except Exception as exc:  # VTK would swallow it: keep it for run()
-            self.last_error = exc
-            vtkOutputWindow.GetInstance().DisplayErrorText(
-                f"{type(self).__name__}: {type(exc).__name__}: {exc}\n")
-            return 0
         return 1
 
     def forest_for(self, dataset) -> ViewDependentFanCloud:
