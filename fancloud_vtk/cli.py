@@ -375,7 +375,7 @@ def _height_field_npz(path: str, spacing):
 
 def _load_forest(args, values):
     """(forest, description) of the ``fancloud vdfc`` input."""
-    from fancloud_vtk.algorithms.vdfc import build_forest, image_of_heights
+    from fancloud_vtk.algorithms.vdfc import build_forest, forest_of, image_of_heights
     from fancloud_vtk.core.vdfc import FORMAT, ViewDependentFanCloud
 
     path = args.input
@@ -397,11 +397,7 @@ def _load_forest(args, values):
         vd, _ = build_forest(image, values)
         return vd, f"height field {heights.shape[0]} x {heights.shape[1]}"
     fc, kind = _load_any(path, _params(args, FAN_PARAMS), args.quiet)
-    from fancloud_vtk.core.vdfc import ViewDependentFanCloud as VDFC
-
-    vd = VDFC.build(fc, values["merge"], weights=values["weights"], n_roots=values["n_roots"],
-                    colors=values["color_array"] or None)
-    return vd, f"{kind}, {fc.n_points:,} points"
+    return forest_of(fc, values), f"{kind}, {fc.n_points:,} points"
 
 
 def cmd_vdfc(args) -> int:

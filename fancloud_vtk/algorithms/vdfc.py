@@ -74,10 +74,14 @@ def build_forest(dataset, values: dict, progress=None) -> tuple[ViewDependentFan
         kind = KIND_HEIGHT_FIELD
     else:
         fc, kind = input_fan_cloud(dataset, fan_values(values), progress)
-    vd = ViewDependentFanCloud.build(fc, values["merge"], weights=values["weights"],
-                                     blocks=blocks, n_roots=values["n_roots"],
-                                     colors=values["color_array"] or None, progress=progress)
-    return vd, kind
+    return forest_of(fc, values, blocks, progress), kind
+
+
+def forest_of(fc, values: dict, blocks=None, progress=None) -> ViewDependentFanCloud:
+    """``ViewDependentFanCloud.build`` of a fan cloud with the table's build values."""
+    return ViewDependentFanCloud.build(fc, values["merge"], weights=values["weights"],
+                                       blocks=blocks, n_roots=values["n_roots"],
+                                       colors=values["color_array"] or None, progress=progress)
 
 
 def e_max_of(vd: ViewDependentFanCloud, e_max: float) -> float:
