@@ -1101,22 +1101,33 @@ def _representative(pos, child, parent, state, a, y):
 def _has_pair(mring, moff, v, s, t, closed):
     """Do s and t follow each other (either way) in v's mapped fan?"""
     a0 = moff[v]
-    k = moff[v + 1] - a0
-    last = k if closed[v] else k - 1
-    for j in range(last):
-        u = mring[a0 + j]
-        w = mring[a0 + (j + 1) % k]
+    a1 = moff[v + 1]
+    if a1 - a0 < 2:
+        return False
+    for j in range(a0, a1 - 1):
+        u = mring[j]
+        w = mring[j + 1]
+        if (u == s and w == t) or (u == t and w == s):
+            return True
+    if closed[v]:  # the closing pair (last, first)
+        u = mring[a1 - 1]
+        w = mring[a0]
         if (u == s and w == t) or (u == t and w == s):
             return True
     return False
 
 
 @njit(cache=True)
-def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring):
+def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring, rep):
     """Distinct triangles of the active fans; returns (triangles, extra points).
 
     ``aidx[x]`` is x's index in ``active`` (or -1). A fan neighbour that is
-    not active is replaced by its active ancestor or representative. A
+    not active is replaced by its active ancestor or representative.
+    ``rep`` (parallel to ``ring``, kept between frames) remembers each ring
+    entry's last stand-in: it is still the stand-in while it is a front node
+    (the front ancestor of a node is unique, and the walk down to the nearer
+    child passes only refined nodes, which a front node below keeps refined),
+    so after a small camera move most walks are skipped. A
     stand-in that is a front node outside the frustum joins the points as an
     *extra* (index ``len(active) + j``, its ``aidx`` set here; it draws no fan
     of its own), so the front has no ragged edge at the border of the view.
@@ -1138,7 +1149,11 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
     for i in range(na):
         x = active[i]
         for j in range(moff[i + 1] - moff[i]):
-            y = _representative(pos, child, parent, state, x, ring[start[i] + j])
+            y = rep[start[i] + j]
+            if state[y] != FRONT:
+                y = _representative(pos, child, parent, state, x, ring[start[i] + j])
+                if y >= 0:
+                    rep[start[i] + j] = y
             if y < 0:
                 mring[moff[i] + j] = -1
                 continue
@@ -1170,7 +1185,7 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
         base = moff2[i]
         for j in range(last):
             s = mring[base + j]
-            t = mring[base + (j + 1) % k]
+            t = mring[base + j + 1] if j + 1 < k else mring[base]
             if s < 0 or t < 0 or s == t or s == i or t == i:
                 continue
             if (s < i and _has_pair(mring, moff2, s, i, t, closed)) or \
@@ -1180,7 +1195,7 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
             dup = False
             for jj in range(j):
                 s2 = mring[base + jj]
-                t2 = mring[base + (jj + 1) % k]
+                t2 = mring[base + jj + 1]  # jj + 1 <= j < k
                 if (s2 == s and t2 == t) or (s2 == t and t2 == s):
                     dup = True
                     break

@@ -522,6 +522,7 @@ class ViewDependentFanCloud:
         self.influenced = None
         self.parent, self.level, self._order, self._lo, self._hi = VK.leaf_order(children)
         self.roots = np.flatnonzero(self.parent < 0)
+        self._rep = None  # front_arrays: each ring entry's last stand-in (valid while a front node)
         self.reset_front()
 
     # -- building ---------------------------------------------------------------
@@ -799,9 +800,11 @@ class ViewDependentFanCloud:
         self._front = front
         t1 = time.perf_counter()
         self._aidx[active] = np.arange(len(active))
+        if self._rep is None:  # the ring entries' last stand-ins, kept for the forest's life
+            self._rep = self.ring.astype(np.int32 if self.n_nodes < 2**31 else np.int64)
         tri, extra = VK.front_triangles(self.positions, self.children, self.parent,
                                         self._state, active, self._aidx, self.open,
-                                        self.ring_offsets, self.ring)
+                                        self.ring_offsets, self.ring, self._rep)
         t2 = time.perf_counter()
         n_view = len(active)
         active = np.concatenate([active, extra])
