@@ -21,10 +21,10 @@ frames
     A smooth fly-through (:func:`~fancloud_vtk.terrain_path`, ``--frames``
     cameras) with ``e_max = --e-max`` and ``d_max`` the default range of
     sight of the first camera, kept for the path: per frame the front
-    update time (``Front.stats["seconds"]``, incremental from the previous
-    frame), the active points and the triangles per active point. Then the
-    same path again with the update's phases timed (a copy of
-    ``front_arrays``' body, a diagnostic), and ``flythrough`` offscreen on
+    update time (``Front.stats["seconds"]``: the whole ``front_arrays`` call,
+    incremental from the previous frame, with its phases), the time to make
+    the ``vtkPolyData`` of it, the active points and the triangles per
+    active point; then ``flythrough`` offscreen on
     ``--render-frames`` cameras spread over the path (PNG frames in
     ``DIR/frames``).
 peers
@@ -53,6 +53,7 @@ import gc
 import os
 import time
 
+import numba
 import numpy as np
 from numba import njit
 
@@ -67,6 +68,7 @@ from fancloud_vtk.bench import (
     table_lines,
     write_outputs,
 )
+from fancloud_vtk.core.vdfc import PARALLEL_FRONT
 
 #: The issue's targets for ``bench vdfc``.
 TARGET_BUILD_RATIO = 3.0  #: forest build (blocks) / build_fans
@@ -199,24 +201,28 @@ def run_frames(vd, cams, e_max: float, d_max: float, quiet: bool) -> dict:
     gc.collect()
     frames = []
     for i, cam in enumerate(cams):
-        s = vd.front_arrays(cam, e_max, d_max).stats
+        front = vd.front_arrays(cam, e_max, d_max)
+        t0 = time.perf_counter()
+        front.to_vtk()
+        ms_vtk = 1e3 * (time.perf_counter() - t0)
+        s = front.stats
         frames.append({"frame": i, "ms": 1e3 * s["seconds"], "active": s["active"],
                        "in_view": s["in_view"], "border": s["border"],
                        "triangles": s["triangles"], "tpp": s["triangles_per_point"],
                        "front": s["front"], "visited": s["visited"],
                        "ms_update": 1e3 * s["seconds_update"],
-                       "ms_triangles": 1e3 * s["seconds_triangles"]})
+                       "ms_triangles": 1e3 * s["seconds_triangles"],
+                       "ms_points": 1e3 * s["seconds_points"], "ms_vtk": ms_vtk})
     _log(quiet, f"  frames: {len(frames)} fronts, mean "
          f"{np.mean([f['ms'] for f in frames[1:] or frames]):.1f} ms")
     rest = frames[1:] or frames
     phases = {"default": {
         "update_front": float(np.mean([f["ms_update"] for f in rest])),
         "front_triangles": float(np.mean([f["ms_triangles"] for f in rest])),
+        "front_points": float(np.mean([f["ms_points"] for f in rest])),
+        "to_vtk": float(np.mean([f["ms_vtk"] for f in rest])),
         "total": float(np.mean([f["ms"] for f in rest])),
         "max_total": float(max(f["ms"] for f in rest))}}
-    phases["default"]["bookkeeping"] = (phases["default"]["total"]
-                                        - phases["default"]["update_front"]
-                                        - phases["default"]["front_triangles"])
     vd.reset_front()
     return {"frames": frames, "phases": phases, "e_max": e_max, "d_max": d_max}
 
@@ -281,9 +287,11 @@ def phase_notes(phases: dict, n_frames: int) -> list[str]:
     ph = phases["default"]
     return [f"front update phases (Front.stats, mean ms over frames 2..{n_frames}): moving "
             f"the front {ph['update_front']:.2f}, the active fans' triangles "
-            f"{ph['front_triangles']:.2f}, the rest (arrays out) {ph['bookkeeping']:.2f}; "
-            f"total {ph['total']:.2f} (max {ph['max_total']:.2f}); the front kernels are "
-            "serial (one thread)"]
+            f"{ph['front_triangles']:.2f}, the points' arrays {ph['front_points']:.2f}; "
+            f"total {ph['total']:.2f} (max {ph['max_total']:.2f}); then the vtkPolyData "
+            f"(Front.to_vtk, not in the total) {ph['to_vtk']:.2f}. Moving the front is "
+            f"serial; the triangles and the points' arrays run on {numba.get_num_threads()} "
+            f"numba threads from {PARALLEL_FRONT:,} active points"]
 
 
 def frames_chart(fr: dict, s: dict, path: str, label: str) -> str:

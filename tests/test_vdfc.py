@@ -329,6 +329,21 @@ def test_incremental_front_equals_the_front_from_scratch(forest):
     assert np.array_equal(a.triangles, b.triangles)
 
 
+def test_parallel_front_triangles_equal_the_serial_ones(forest, monkeypatch):
+    import fancloud_vtk.core.vdfc as vdfc_module
+
+    path = terrain_path(forest.bounds(), 12, height=0.3)
+    fronts = {}
+    for threshold in (0, 10**9):  # every front on all threads; every front serially
+        monkeypatch.setattr(vdfc_module, "PARALLEL_FRONT", threshold)
+        vd = _fresh(forest)
+        fronts[threshold] = [vd.front_arrays(cam, 0.004, 8.0) for cam in path]
+    for a, b in zip(*fronts.values(), strict=True):
+        assert a.stats["border"] > 0  # the extras are numbered in the same order too
+        assert np.array_equal(a.point_data["node_id"], b.point_data["node_id"])
+        assert np.array_equal(a.triangles, b.triangles)
+
+
 def test_triangles_per_point_about_two(forest):
     vd = _fresh(forest)
     for e_max in (0.003, 0.03):

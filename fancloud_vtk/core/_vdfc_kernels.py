@@ -1117,8 +1117,9 @@ def _has_pair(mring, moff, v, s, t, closed):
     return False
 
 
-@njit(cache=True)
-def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring, rep):
+@njit(cache=True, parallel=True)
+def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring, rep,
+                    n_chunks):
     """Distinct triangles of the active fans; returns (triangles, extra points).
 
     ``aidx[x]`` is x's index in ``active`` (or -1). A fan neighbour that is
@@ -1127,85 +1128,144 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
     entry's last stand-in: it is still the stand-in while it is a front node
     (the front ancestor of a node is unique, and the walk down to the nearer
     child passes only refined nodes, which a front node below keeps refined),
-    so after a small camera move most walks are skipped. A
-    stand-in that is a front node outside the frustum joins the points as an
-    *extra* (index ``len(active) + j``, its ``aidx`` set here; it draws no fan
-    of its own), so the front has no ragged edge at the border of the view.
-    A triangle is written once, by the smallest of its points whose fan holds it.
-    Serial on purpose: a frame's work is a few milliseconds, where waking
-    threads on a loaded machine costs more than it saves.
+    so after a small camera move most walks are skipped. A stand-in that is a
+    front node outside the frustum joins the points as an *extra* (index
+    ``len(active) + j`` in the order of first use, its ``aidx`` set here; it
+    draws no fan of its own), so the front has no ragged edge at the border
+    of the view. A triangle is written once, by the smallest of its points
+    whose fan holds it, in the order of the fans.
+
+    The stand-ins and the triangles run in ``n_chunks`` ranges of fans in
+    parallel (1: serially; the result is the same): each fan writes only its
+    own ring entries and its own rows, compacted at the end.
     """
     na = active.shape[0]
     moff = np.zeros(na + 1, np.int64)
-    start = np.empty(na, np.int64)
     for i in range(na):
         x = active[i]
-        start[i] = ring_off[x]
-        moff[i + 1] = moff[i] + ring_off[x + 1] - start[i]
-    # stand-ins, numbered as points (new ones outside the view become extras) in one pass
-    mring = np.empty(moff[na], np.int64)
+        moff[i + 1] = moff[i] + ring_off[x + 1] - ring_off[x]
+    n = moff[na]
+    mring = np.empty(n, np.int64)
+    closed = np.empty(na, np.bool_)
+    # stand-ins (a new one outside the view: -2 - its node, numbered below in order)
+    for ch in prange(n_chunks):
+        lo = na * ch // n_chunks
+        hi = na * (ch + 1) // n_chunks
+        for i in range(lo, hi):
+            x = active[i]
+            closed[i] = not is_open[x]
+            s0 = ring_off[x]
+            for j in range(moff[i + 1] - moff[i]):
+                y = rep[s0 + j]
+                if state[y] != FRONT:
+                    y = _representative(pos, child, parent, state, x, ring[s0 + j])
+                    if y >= 0:
+                        rep[s0 + j] = y
+                if y < 0:
+                    mring[moff[i] + j] = -1
+                else:
+                    v = aidx[y]
+                    mring[moff[i] + j] = v if v >= 0 else -2 - y
     extra = np.empty(64, np.int64)
     ne = 0
-    for i in range(na):
-        x = active[i]
-        for j in range(moff[i + 1] - moff[i]):
-            y = rep[start[i] + j]
-            if state[y] != FRONT:
-                y = _representative(pos, child, parent, state, x, ring[start[i] + j])
-                if y >= 0:
-                    rep[start[i] + j] = y
-            if y < 0:
-                mring[moff[i] + j] = -1
-                continue
+    for q in range(n):
+        v = mring[q]
+        if v < -1:
+            y = -2 - v
             v = aidx[y]
             if v < 0:
                 if ne >= extra.shape[0]:
                     bigger = np.empty(2 * extra.shape[0], np.int64)
-                    bigger[:ne] = extra[:ne]
+                    for e in range(ne):
+                        bigger[e] = extra[e]
                     extra = bigger
                 extra[ne] = y
                 v = na + ne
                 aidx[y] = v
                 ne += 1
-            mring[moff[i] + j] = v
-    extra = extra[:ne].copy()
-    # extras hold no fan: empty mapped rings after the active ones
-    moff2 = np.empty(na + ne + 1, np.int64)
-    moff2[:na + 1] = moff
+            mring[q] = v
+    ex = np.empty(ne, np.int64)
     for e in range(ne):
-        moff2[na + 1 + e] = moff[na]
-    closed = np.zeros(na + ne, np.bool_)
+        ex[e] = extra[e]
+    extra = ex
+    moff2 = np.empty(na + ne + 1, np.int64)
+    for i in range(na + 1):
+        moff2[i] = moff[i]
+    for e in range(ne):
+        moff2[na + 1 + e] = n
+    closed2 = np.zeros(na + ne, np.bool_)
     for i in range(na):
-        closed[i] = not is_open[active[i]]
-    tri = np.empty((moff[na], 3), np.int64)
+        closed2[i] = closed[i]
+    tri = np.empty((n, 3), np.int64)
+    cnt = np.zeros(na, np.int64)
+    for ch in prange(n_chunks):
+        lo = na * ch // n_chunks
+        hi = na * (ch + 1) // n_chunks
+        for i in range(lo, hi):
+            k = moff2[i + 1] - moff2[i]
+            last = k if closed2[i] else k - 1
+            base = moff2[i]
+            c = base
+            for j in range(last):
+                s = mring[base + j]
+                t = mring[base + j + 1] if j + 1 < k else mring[base]
+                if s < 0 or t < 0 or s == t or s == i or t == i:
+                    continue
+                if (s < i and _has_pair(mring, moff2, s, i, t, closed2)) or \
+                        (t < i and _has_pair(mring, moff2, t, i, s, closed2)):
+                    continue
+                dup = False
+                for jj in range(j):
+                    s2 = mring[base + jj]
+                    t2 = mring[base + jj + 1]
+                    if (s2 == s and t2 == t) or (s2 == t and t2 == s):
+                        dup = True
+                        break
+                if dup:
+                    continue
+                tri[c, 0] = i
+                tri[c, 1] = s
+                tri[c, 2] = t
+                c += 1
+            cnt[i] = c - base
+    total = 0
+    for i in range(na):
+        total += cnt[i]
+    out = np.empty((total, 3), np.int64)
     c = 0
     for i in range(na):
-        k = moff2[i + 1] - moff2[i]
-        last = k if closed[i] else k - 1
-        base = moff2[i]
-        for j in range(last):
-            s = mring[base + j]
-            t = mring[base + j + 1] if j + 1 < k else mring[base]
-            if s < 0 or t < 0 or s == t or s == i or t == i:
-                continue
-            if (s < i and _has_pair(mring, moff2, s, i, t, closed)) or \
-                    (t < i and _has_pair(mring, moff2, t, i, s, closed)):
-                continue
-            # the same triangle twice in this fan (a fan folding over stand-ins)
-            dup = False
-            for jj in range(j):
-                s2 = mring[base + jj]
-                t2 = mring[base + jj + 1]  # jj + 1 <= j < k
-                if (s2 == s and t2 == t) or (s2 == t and t2 == s):
-                    dup = True
-                    break
-            if dup:
-                continue
-            tri[c, 0] = i
-            tri[c, 1] = s
-            tri[c, 2] = t
+        b = moff2[i]
+        for r in range(cnt[i]):
+            out[c, 0] = tri[b + r, 0]
+            out[c, 1] = tri[b + r, 1]
+            out[c, 2] = tri[b + r, 2]
             c += 1
-    return tri[:c].copy(), extra
+    return out, extra
+
+
+@njit(cache=True, parallel=True)
+def front_points(active, extra, aidx, pos, nrm, level, err, n_chunks):
+    """The front's points in order (``active`` then ``extra``): node ids, positions,
+    normals, levels and errors gathered in ``n_chunks`` ranges in parallel, and
+    their ``aidx`` entries cleared (-1) for the next frame."""
+    na = active.shape[0]
+    n = na + extra.shape[0]
+    ids = np.empty(n, np.int64)
+    p = np.empty((n, 3), np.float64)
+    q = np.empty((n, 3), np.float64)
+    lv = np.empty(n, level.dtype)
+    e = np.empty(n, np.float64)
+    for ch in prange(n_chunks):
+        for i in range(n * ch // n_chunks, n * (ch + 1) // n_chunks):
+            x = active[i] if i < na else extra[i - na]
+            ids[i] = x
+            aidx[x] = -1
+            for d in range(3):
+                p[i, d] = pos[x, d]
+                q[i, d] = nrm[x, d]
+            lv[i] = level[x]
+            e[i] = err[x]
+    return ids, p, q, lv, e
 
 
 @njit(cache=True)

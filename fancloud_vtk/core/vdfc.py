@@ -41,6 +41,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from . import _entropy_kernels as EK
@@ -57,6 +58,8 @@ MERGES = ("entropy", "half_edge")
 #: would exceed it waits (the pair is skipped).
 WIDTH = 32
 FORMAT = "fancloud-vdfc-1"
+#: Active points from which a front's triangles run on all numba threads.
+PARALLEL_FRONT = 8192
 
 
 # -- terrain -------------------------------------------------------------------------
@@ -363,9 +366,10 @@ class Front(TriangleMesh):
     bounding spheres meet the frustum, and ``border``, front nodes just
     outside it that the fans of the former reach), ``triangles``,
     ``front`` (front nodes, in and out of view), ``visited`` (nodes looked
-    at by this update), ``seconds`` (the whole update; of which
-    ``seconds_update`` moving the front and ``seconds_triangles`` the active
-    fans' triangles) and ``triangles_per_point``.
+    at by this update), ``seconds`` (the whole call, from the camera to
+    these arrays; of which ``seconds_update`` moving the front,
+    ``seconds_triangles`` the active fans' triangles and ``seconds_points``
+    gathering the points' arrays) and ``triangles_per_point``.
     """
 
     @property
@@ -785,10 +789,10 @@ class ViewDependentFanCloud:
     def front_arrays(self, camera, e_max: float, d_max: float | None = None, *,
                      aspect: float | None = None, incremental: bool = True) -> Front:
         """The active front for ``camera`` as arrays (see :meth:`front`)."""
+        t0 = time.perf_counter()
         cam = Camera.of(camera, aspect)
         e_max = _positive("e_max", e_max)
         d_max = self.default_d_max(cam) if d_max is None else _positive("d_max", d_max)
-        t0 = time.perf_counter()
         eye, planes = cam.frustum()
         if not incremental:
             self.reset_front()
@@ -802,28 +806,31 @@ class ViewDependentFanCloud:
         self._aidx[active] = np.arange(len(active))
         if self._rep is None:  # the ring entries' last stand-ins, kept for the forest's life
             self._rep = self.ring.astype(np.int32 if self.n_nodes < 2**31 else np.int64)
+        # two cores halve the work of a large front; a small one is not worth waking them
+        chunks = numba.get_num_threads() if len(active) >= PARALLEL_FRONT else 1
         tri, extra = VK.front_triangles(self.positions, self.children, self.parent,
                                         self._state, active, self._aidx, self.open,
-                                        self.ring_offsets, self.ring, self._rep)
+                                        self.ring_offsets, self.ring, self._rep, chunks)
         t2 = time.perf_counter()
         n_view = len(active)
-        active = np.concatenate([active, extra])
-        self._aidx[active] = -1
-        seconds = time.perf_counter() - t0
-        pdata = {"node_id": active, "level": self.level[active],
-                 "error": self.error[active]}
+        ids, points, normals, level, error = VK.front_points(
+            active, extra, self._aidx, self.positions, self.normals, self.level, self.error,
+            chunks)
+        pdata = {"node_id": ids, "level": level, "error": error}
         if self.colors is not None:
-            c = self.colors[active]
+            c = self.colors[ids]
             if self.color_uint8:
                 c = np.clip(np.round(c * 255), 0, 255).astype(np.uint8)
             pdata[self.color_name or "RGB"] = c
-        stats = {"active": len(active), "in_view": n_view, "border": len(extra),
+        seconds = time.perf_counter() - t0
+        stats = {"active": len(ids), "in_view": n_view, "border": len(extra),
                  "triangles": len(tri), "front": len(front),
                  "visited": int(visited), "seconds": seconds,
-                 "triangles_per_point": len(tri) / len(active) if len(active) else 0.0,
+                 "triangles_per_point": len(tri) / len(ids) if len(ids) else 0.0,
                  "seconds_update": t1 - t0, "seconds_triangles": t2 - t1,
+                 "seconds_points": seconds - (t2 - t0),
                  "e_max": e_max, "d_max": d_max}
-        return Front(self.positions[active], tri, self.normals[active], pdata, stats)
+        return Front(points, tri, normals, pdata, stats)
 
     def front(self, camera, e_max: float, d_max: float | None = None, *,
               aspect: float | None = None, incremental: bool = True):
