@@ -973,17 +973,54 @@ def _refine_memo(pos, radius, bound, child, planes, eye, scale, memo, tick, x):
     return r
 
 
+@njit(cache=True, parallel=True)
+def front_decisions(pos, radius, bound, child, parent, front, planes, eye, scale, memo, tick,
+                    n_chunks):
+    """What every front node does for the new camera: (decision, ancestors tested).
+
+    The decision is -2 when the node splits, else the highest ancestor that
+    no longer needs refining, to which it gives way (-1: none, it stays).
+    These tests depend on the camera only, so they run in ``n_chunks``
+    ranges of the front in parallel (two threads may both make an
+    ancestor's test and write the same ``memo``); :func:`update_front`
+    then moves the front serially.
+    """
+    n_front = front.shape[0]
+    dec = np.empty(n_front, np.int64)
+    walk = np.zeros(n_front, np.int64)
+    for ch in prange(n_chunks):
+        for i in range(n_front * ch // n_chunks, n_front * (ch + 1) // n_chunks):
+            x = front[i]
+            if _refine_memo(pos, radius, bound, child, planes, eye, scale, memo, tick, x):
+                dec[i] = -2
+                continue
+            top_node = -1
+            y = parent[x]
+            w = 0
+            while y >= 0:
+                w += 1
+                if _refine_memo(pos, radius, bound, child, planes, eye, scale, memo, tick, y):
+                    break
+                top_node = y
+                y = parent[y]
+            dec[i] = top_node
+            walk[i] = w
+    return dec, walk
+
+
 @njit(cache=True)
-def update_front(pos, radius, bound, child, parent, state, front, n_front, planes, eye, scale,
-                 memo, tick):
+def update_front(pos, radius, bound, child, parent, state, front, planes, eye, scale, memo,
+                 tick, dec, walk):
     """Move the front to a new camera; returns (front, active, nodes visited).
 
     Starting from the previous front, a front node either splits (while its
     children need it), stays, or gives way to its highest ancestor that no
-    longer needs refining; only the nodes that change state are visited
-    besides the front itself (an ancestor's test is made once per frame:
-    ``memo``, ``tick``). ``active``: the front nodes in the frustum.
+    longer needs refining (``dec``, ``walk``: :func:`front_decisions`); only
+    the nodes that change state are visited besides the front itself (an
+    ancestor's test is made once per frame: ``memo``, ``tick``).
+    ``active``: the front nodes in the frustum.
     """
+    n_front = front.shape[0]
     out = np.empty(max(2 * n_front + 16, 64), np.int64)
     m = 0
     visited = 0
@@ -992,8 +1029,8 @@ def update_front(pos, radius, bound, child, parent, state, front, n_front, plane
         x = front[i]
         if state[x] != FRONT:
             continue
-        visited += 1
-        if _refine_memo(pos, radius, bound, child, planes, eye, scale, memo, tick, x):
+        visited += 1 + walk[i]
+        if dec[i] == -2:
             state[x] = REFINED
             stack[0] = child[x, 1]
             stack[1] = child[x, 0]
@@ -1021,14 +1058,7 @@ def update_front(pos, radius, bound, child, parent, state, front, n_front, plane
                     m += 1
             continue
         # the highest ancestor that is no longer refined
-        top_node = -1
-        y = parent[x]
-        while y >= 0:
-            visited += 1
-            if _refine_memo(pos, radius, bound, child, planes, eye, scale, memo, tick, y):
-                break
-            top_node = y
-            y = parent[y]
+        top_node = dec[i]
         if top_node >= 0:
             state[top_node] = FRONT
             # clear the refined subtree below it

@@ -58,7 +58,7 @@ MERGES = ("entropy", "half_edge")
 #: would exceed it waits (the pair is skipped).
 WIDTH = 32
 FORMAT = "fancloud-vdfc-1"
-#: Active points from which a front's triangles run on all numba threads.
+#: Front size (nodes of the previous front) from which the front update runs on all numba threads.
 PARALLEL_FRONT = 8192
 
 
@@ -797,17 +797,19 @@ class ViewDependentFanCloud:
         if not incremental:
             self.reset_front()
         self._tick += 1
-        front, active, visited = VK.update_front(self.positions, self.radius, self.bound,
-                                                 self.children, self.parent, self._state,
-                                                 self._front, len(self._front), planes, eye,
-                                                 e_max / d_max, self._memo, self._tick)
+        # two cores halve the work of a large front; a small one is not worth waking them
+        chunks = numba.get_num_threads() if len(self._front) >= PARALLEL_FRONT else 1
+        args = (self.positions, self.radius, self.bound, self.children, self.parent)
+        dec, walk = VK.front_decisions(*args, self._front, planes, eye, e_max / d_max,
+                                       self._memo, self._tick, chunks)
+        front, active, visited = VK.update_front(*args, self._state, self._front, planes, eye,
+                                                 e_max / d_max, self._memo, self._tick, dec,
+                                                 walk)
         self._front = front
         t1 = time.perf_counter()
         self._aidx[active] = np.arange(len(active))
         if self._rep is None:  # the ring entries' last stand-ins, kept for the forest's life
             self._rep = self.ring.astype(np.int32 if self.n_nodes < 2**31 else np.int64)
-        # two cores halve the work of a large front; a small one is not worth waking them
-        chunks = numba.get_num_threads() if len(active) >= PARALLEL_FRONT else 1
         tri, extra = VK.front_triangles(self.positions, self.children, self.parent,
                                         self._state, active, self._aidx, self.open,
                                         self.ring_offsets, self.ring, self._rep, chunks)
