@@ -289,9 +289,9 @@ def phase_notes(phases: dict, n_frames: int) -> list[str]:
             f"the front {ph['update_front']:.2f}, the active fans' triangles "
             f"{ph['front_triangles']:.2f}, the points' arrays {ph['front_points']:.2f}; "
             f"total {ph['total']:.2f} (max {ph['max_total']:.2f}); then the vtkPolyData "
-            f"(Front.to_vtk, not in the total) {ph['to_vtk']:.2f}. Moving the front is "
-            f"serial; the triangles and the points' arrays run on {numba.get_num_threads()} "
-            f"numba threads from {PARALLEL_FRONT:,} active points"]
+            f"(Front.to_vtk, not in the total) {ph['to_vtk']:.2f}. From {PARALLEL_FRONT:,} "
+            f"front nodes the nodes' tests, the triangles and the points' arrays run on "
+            f"{numba.get_num_threads()} numba threads; the front's moves are serial"]
 
 
 def frames_chart(fr: dict, s: dict, path: str, label: str) -> str:
