@@ -18,7 +18,7 @@ the fans it changed.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 
 from ._entropy_kernels import point_cc, point_terms
 from ._mesh_kernels import _tangent, closed_ring, inversions, open_ring
@@ -758,40 +758,108 @@ def _write_logs(R, rlen, ropen, IN, nin, acc, frames, idx, rem_at, ent_at, ring_
         log_off[r + 1] = ent_at[j + 1]
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
-           buf_open, stamp, tag):
-    """Make the removals ``acc[idx]``: fans re-formed, in-lists kept; the changed fans, once."""
-    total = 0
-    for j in range(idx.shape[0]):
-        total += nin[acc[idx[j]]]
-    changed = np.empty(total, np.int64)
-    n_changed = 0
-    for j in range(idx.shape[0]):
+           buf_open, stamp, tag, n_chunks):
+    """Make the removals ``acc[idx]``: fans re-formed, in-lists kept; the changed fans, once.
+
+    The same result as making them one after the other, in two parallel
+    passes. The accepted points' neighbourhoods (p, its ring, its in-list)
+    are disjoint, so the removals touch disjoint rows of ``R``, and p's
+    in-list is the one at the start of the round. First each removal, in
+    parallel, re-forms its fans and writes the in-list changes they imply
+    as events, in the order the serial loop makes them. Then the in-lists
+    change: every thread reads all events in order and makes those of its
+    own range of points (``n_chunks`` ranges), so each in-list sees the
+    serial sequence.
+    """
+    m = idx.shape[0]
+    ch_off = np.empty(m + 1, np.int64)  # the changed fans of removal j
+    ev_off = np.empty(m + 1, np.int64)  # room for its events
+    ch_off[0] = 0
+    ev_off[0] = 0
+    for j in range(m):
+        p = acc[idx[j]]
+        ch_off[j + 1] = ch_off[j] + nin[p]
+        room = rlen[p]
+        for t in range(nin[p]):
+            room += rlen[IN[p, t]] + buf_len[buf_off[idx[j]] + t]
+        ev_off[j + 1] = ev_off[j] + room
+    changed = np.empty(ch_off[m], np.int64)
+    ev_y = np.empty(ev_off[m], np.int64)
+    ev_x = np.empty(ev_off[m], np.int64)
+    ev_add = np.empty(ev_off[m], np.bool_)
+    ev_n = np.zeros(m, np.int64)
+    for j in prange(m):
         i = idx[j]
         p = acc[i]
         active[p] = False
         key[p] = INF
-        n_aff = nin[p]
-        first = n_changed
-        for t in range(n_aff):  # a copy: p's in-list empties as its fans change
-            changed[n_changed] = IN[p, t]
-            n_changed += 1
+        e = ev_off[j]
+        for t in range(nin[p]):  # a copy: p's in-list empties as its fans change
+            changed[ch_off[j] + t] = IN[p, t]
         for a in range(rlen[p]):
-            _in_remove(IN, nin, over, R[p, a], p)
-        for t in range(n_aff):
-            x = changed[first + t]
+            ev_y[e] = R[p, a]
+            ev_x[e] = p
+            ev_add[e] = False
+            e += 1
+        for t in range(nin[p]):
+            x = changed[ch_off[j] + t]
             b = buf_off[i] + t
-            _set_ring(R, rlen, IN, nin, over, x, buf[b], buf_len[b])
+            k = buf_len[b]
+            for a in range(rlen[x]):  # as _set_ring: the dropped, then the new
+                z = R[x, a]
+                kept = False
+                for c in range(k):
+                    if buf[b, c] == z:
+                        kept = True
+                        break
+                if not kept:
+                    ev_y[e] = z
+                    ev_x[e] = x
+                    ev_add[e] = False
+                    e += 1
+            for c in range(k):
+                z = buf[b, c]
+                new = True
+                for a in range(rlen[x]):
+                    if R[x, a] == z:
+                        new = False
+                        break
+                if new:
+                    ev_y[e] = z
+                    ev_x[e] = x
+                    ev_add[e] = True
+                    e += 1
+            for c in range(k):
+                R[x, c] = buf[b, c]
+            rlen[x] = k
             ropen[x] = buf_open[b]
-    m = 0
-    for t in range(n_changed):
+        ev_n[j] = e - ev_off[j]
+    n = nin.shape[0]
+    for ch in prange(n_chunks):
+        lo = n * ch // n_chunks
+        hi = n * (ch + 1) // n_chunks
+        for j in range(m):
+            for e in range(ev_off[j], ev_off[j] + ev_n[j]):
+                y = ev_y[e]
+                if y < lo or y >= hi:
+                    continue
+                if ev_add[e]:
+                    _in_add(IN, nin, over, y, ev_x[e])
+                else:
+                    _in_remove(IN, nin, over, y, ev_x[e])
+    k = 0
+    for t in range(ch_off[m]):
         x = changed[t]
         if stamp[x] != tag:
             stamp[x] = tag
-            changed[m] = x
-            m += 1
-    return changed[:m]
+            changed[k] = x
+            k += 1
+    out = np.empty(k, np.int64)
+    for t in range(k):
+        out[t] = changed[t]
+    return out
 
 
 def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len,
@@ -814,7 +882,7 @@ def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, 
     counters[4] = rem_at[m]
     counters[5] += 1
     return _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
-                  buf_open, stamp, counters[5])
+                  buf_open, stamp, counters[5], get_num_threads() if m > 64 else 1)
 
 
 @njit(cache=True, parallel=True)
