@@ -80,17 +80,20 @@ class PyVistaViewDependentFanCloud(ViewDependentFanCloud):
         out.values = dict(values)
         return out
 
-    def front(self, camera, e_max=None, d_max=None, *, aspect=None, incremental=True):
+    def front(self, camera, e_max=None, d_max=None, *, aspect=None, incremental=True,
+              superfluous=None):
         """The active front for ``camera`` as a new ``pyvista.PolyData``.
 
-        ``e_max``, ``d_max``, ``aspect``: as for
+        ``e_max``, ``d_max``, ``aspect``, ``superfluous``: as for
         :meth:`fancloud_vtk.ViewDependentFanCloud.front`; by default the
         values given to ``vdfc()`` (``e_max`` 0: 0.1% of the diagonal).
         """
         e = e_max if e_max is not None else e_max_of(self, self.values["e_max"])
         d = d_max if d_max is not None else (self.values["d_max"] or None)
         a = aspect if aspect is not None else (self.values["aspect"] or None)
-        return pv.wrap(super().front(camera, e, d, aspect=a, incremental=incremental))
+        s = superfluous if superfluous is not None else self.values["superfluous"]
+        return pv.wrap(super().front(camera, e, d, aspect=a, incremental=incremental,
+                                     superfluous=s))
 
     def filter(self) -> FanCloudViewDependentFilter:
         """A :class:`~fancloud_vtk.algorithms.FanCloudViewDependentFilter` over this forest."""

@@ -158,6 +158,7 @@ class FanCloudAccessor:
         n_roots: int = 1,
         block_size: int = 0,
         aspect: float = 0.0,
+        superfluous: bool = False,
         progress_bar: bool = False,
     ) -> PyVistaViewDependentFanCloud:
         """The merge forest of the view-dependent fan cloud (paper section 8)."""

@@ -63,23 +63,24 @@ def _add_params(parser: argparse.ArgumentParser, table: tuple[Param, ...], flags
     flags = flags or {}
     for p in table:
         names = flags.get(p.name, (p.cli_flag,))
+        doc = p.doc.replace("%", "%%")  # argparse formats help strings with %
         if p.kind == "vector":
             parser.add_argument(*names, dest=p.name, type=_vector(p.size), default=p.default,
                                 metavar=",".join(["X"] * p.size),
-                                help=f"{p.doc} (default: {','.join(map(str, p.default))})")
+                                help=f"{doc} (default: {','.join(map(str, p.default))})")
         elif p.kind == "str":
             parser.add_argument(*names, dest=p.name, default=p.default,
-                                help=f"{p.doc} (default: {p.default!r})")
+                                help=f"{doc} (default: {p.default!r})")
         elif p.kind == "bool":
             parser.add_argument(
                 p.cli_flag, dest=p.name, default=p.default,
-                action=argparse.BooleanOptionalAction, help=f"{p.doc} (default: {p.default})",
+                action=argparse.BooleanOptionalAction, help=f"{doc} (default: {p.default})",
             )
         else:
             kind = {"int": int, "float": float, "choice": str}[p.kind]
             parser.add_argument(
                 *names, dest=p.name, type=kind, default=p.default, choices=p.choices,
-                help=f"{p.doc} (default: {p.default})",
+                help=f"{doc} (default: {p.default})",
             )
 
 
@@ -429,7 +430,7 @@ def cmd_vdfc(args) -> int:
         if args.output.lower().endswith(".vtp"):
             from fancloud_vtk.algorithms.convert import write_vtp
 
-            front = vd.front_arrays(camera, e_max, d_max)
+            front = vd.front_arrays(camera, e_max, d_max, superfluous=values["superfluous"])
             write_vtp(front.to_vtk(), args.output)
             stats = front.stats
             front_ms = 1e3 * stats["seconds"]
@@ -438,7 +439,8 @@ def cmd_vdfc(args) -> int:
             import tempfile
 
             with tempfile.TemporaryDirectory() as tmp:
-                row = flythrough(vd, [camera], e_max, tmp, d_max=d_max, size=(w, h))[0]
+                row = flythrough(vd, [camera], e_max, tmp, d_max=d_max, size=(w, h),
+                                 superfluous=values["superfluous"])[0]
                 shutil.move(os.path.join(tmp, "frame_0000.png"), args.output)
             stats = row
             front_ms = row["front_ms"]
@@ -453,7 +455,7 @@ def cmd_vdfc(args) -> int:
         progress = _Progress("fly-through", args.quiet)
         try:
             frames = flythrough(vd, cams, e_max, args.flythrough, d_max=d_max, size=(w, h),
-                                progress=progress)
+                                superfluous=values["superfluous"], progress=progress)
         finally:
             progress.close()
         ms = np.array([f["front_ms"] for f in frames])

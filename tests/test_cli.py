@@ -213,3 +213,13 @@ def test_bench_help_lists_the_benchmarks(capsys):
         main(["bench", "--help"])
     assert done.value.code == 0
     assert "fans" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("command", ["fans", "mesh", "entropy", "reduce", "refine", "vdfc",
+                                     "demo", "bench"])
+def test_every_command_prints_its_help(command, capsys):
+    # a parameter's text with a '%' ("0.1% of the diagonal") once broke argparse's help
+    with pytest.raises(SystemExit) as done:
+        main([command, "--help"])
+    assert done.value.code == 0
+    assert capsys.readouterr().out.startswith("usage: fancloud " + command)

@@ -344,6 +344,43 @@ def test_parallel_front_triangles_equal_the_serial_ones(forest, monkeypatch):
         assert np.array_equal(a.triangles, b.triangles)
 
 
+def test_superfluous_triangles_go_and_leave_one_cover(forest):
+    """Where fans of different levels meet, doubly covered quads keep one diagonal's pair."""
+    vd = _fresh(forest)
+    plain = vd.front_arrays(OBLIQUE, 0.01, 8.0)
+    vd2 = _fresh(forest)
+    lean = vd2.front_arrays(OBLIQUE, 0.01, 8.0, superfluous=True)
+    assert np.array_equal(plain.point_data["node_id"], lean.point_data["node_id"])
+    assert lean.stats["distinct"] == plain.stats["triangles"]
+    assert 0 < lean.stats["triangles"] < plain.stats["triangles"]
+    assert abs(lean.stats["triangles_per_point"] - 2.0) < abs(
+        plain.stats["triangles_per_point"] - 2.0)
+    assert _tri_set(lean.triangles) <= _tri_set(plain.triangles)  # a subset, nothing new
+    # no doubly covered quad is left: on an edge x-y with triangles x y u and x y v
+    # (u, v on opposite sides), neither u v x nor u v y is still drawn
+    tris = _tri_set(lean.triangles)
+    by_edge = {}
+    for t in tris:
+        a, b, c = sorted(t)
+        for e, w in (((a, b), c), ((b, c), a), ((a, c), b)):
+            by_edge.setdefault(e, []).append(w)
+    pts, nrm = lean.points, lean.normals
+    left = 0
+    for (x, y), ws in by_edge.items():
+        for i, u in enumerate(ws):
+            for v in ws[i + 1:]:
+                n = nrm[x] + nrm[y]
+                e = pts[y] - pts[x]
+                su = np.dot(np.cross(e, pts[u] - pts[x]), n)
+                sv = np.dot(np.cross(e, pts[v] - pts[x]), n)
+                if su * sv < 0 and (tuple(sorted((u, v, x))) in tris
+                                    or tuple(sorted((u, v, y))) in tris):
+                    left += 1
+    assert left == 0
+    # every point still has a triangle
+    assert len(np.unique(lean.triangles)) == len(np.unique(plain.triangles))
+
+
 def test_triangles_per_point_about_two(forest):
     vd = _fresh(forest)
     for e_max in (0.003, 0.03):

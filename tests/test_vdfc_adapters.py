@@ -70,6 +70,19 @@ def test_filter_follows_its_camera():
     assert alg.kind == "height field"
 
 
+def test_filter_removes_superfluous_triangles_when_asked():
+    alg = FanCloudViewDependentFilter(e_max=0.02, d_max=8.0)
+    alg.SetInputDataObject(image_of_heights(_heights(), spacing=0.1))
+    alg.SetCamera(_camera())
+    plain = run(alg).GetNumberOfCells()
+    assert alg.last_stats["distinct"] == alg.last_stats["triangles"] == plain
+    forest = alg.forest
+    alg.superfluous = True  # a front parameter: the forest stays
+    lean = run(alg).GetNumberOfCells()
+    assert alg.forest is forest
+    assert lean == alg.last_stats["triangles"] < alg.last_stats["distinct"] == plain
+
+
 def test_filter_inputs_and_errors(tmp_path):
     fc = terrain_fan_cloud(_heights(), spacing=0.1)
     cam = ((2.5, -3.0, 2.5), (2.5, 2.5, 0.0), (0, 0, 1), 40.0)

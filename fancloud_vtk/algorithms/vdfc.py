@@ -217,7 +217,8 @@ class FanCloudViewDependentFilter(FanCloudAlgorithm):
             raise ValueError("FanCloudViewDependentFilter has no camera (SetCamera)")
         values = self.parameters
         front = vd.front_arrays(camera, e_max_of(vd, values["e_max"]), values["d_max"] or None,
-                                aspect=values["aspect"] or None)
+                                aspect=values["aspect"] or None,
+                                superfluous=values["superfluous"])
         self.last_stats = dict(front.stats)
         self._progress(1.0, "front")
         return front.to_vtk()
@@ -282,7 +283,7 @@ def follow_camera(viewer, algorithm: FanCloudViewDependentFilter) -> int:
 
 def flythrough(forest: ViewDependentFanCloud, cameras, e_max: float, out_dir=None, *,
                d_max: float | None = None, size=(640, 480), color="tan",
-               progress=None) -> list[dict]:
+               superfluous: bool = False, progress=None) -> list[dict]:
     """Render a camera path offscreen; record every frame's front.
 
     Parameters
@@ -298,6 +299,9 @@ def flythrough(forest: ViewDependentFanCloud, cameras, e_max: float, out_dir=Non
         the frames are rendered and timed all the same).
     size : (int, int)
         Width and height of the frames.
+    superfluous : bool, default: False
+        Remove the fronts' superfluous triangles (see
+        :meth:`ViewDependentFanCloud.front`).
 
     Returns
     -------
@@ -342,7 +346,8 @@ def flythrough(forest: ViewDependentFanCloud, cameras, e_max: float, out_dir=Non
     forest.reset_front()
     try:
         for i, cam in enumerate(cams):
-            front = forest.front_arrays(cam, e_max, d_max, aspect=aspect)
+            front = forest.front_arrays(cam, e_max, d_max, aspect=aspect,
+                                        superfluous=superfluous)
             poly = front.to_vtk()
             mapper.SetInputData(poly)
             vc = ren.GetActiveCamera()

@@ -37,7 +37,7 @@ try:  # the huge-page hint below needs numba's code generation internals
 except ImportError:  # pragma: no cover - other numba versions: no hint
     intrinsic = None
 
-from ._mesh_kernels import _tangent
+from ._mesh_kernels import _min_angle_cos, _opposite, _tangent, resolve_quads
 
 MERGE_ENTROPY = 0
 MERGE_HALF_EDGE = 1
@@ -1150,7 +1150,7 @@ def _has_pair(mring, moff, v, s, t, closed):
 @njit(cache=True, parallel=True)
 def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring, rep,
                     n_chunks):
-    """Distinct triangles of the active fans; returns (triangles, extra points).
+    """Distinct triangles of the active fans; returns (triangles, held, extra points).
 
     ``aidx[x]`` is x's index in ``active`` (or -1). A fan neighbour that is
     not active is replaced by its active ancestor or representative.
@@ -1163,7 +1163,8 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
     ``len(active) + j`` in the order of first use, its ``aidx`` set here; it
     draws no fan of its own), so the front has no ragged edge at the border
     of the view. A triangle is written once, by the smallest of its points
-    whose fan holds it, in the order of the fans.
+    whose fan holds it, in the order of the fans; ``held``: how many of
+    its points' fans hold it (1 to 3).
 
     The stand-ins and the triangles run in ``n_chunks`` ranges of fans in
     parallel (1: serially; the result is the same): each fan writes only its
@@ -1227,6 +1228,7 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
     for i in range(na):
         closed2[i] = closed[i]
     tri = np.empty((n, 3), np.int64)
+    hold = np.empty(n, np.int64)
     cnt = np.zeros(na, np.int64)
     for ch in prange(n_chunks):
         lo = na * ch // n_chunks
@@ -1256,12 +1258,19 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
                 tri[c, 0] = i
                 tri[c, 1] = s
                 tri[c, 2] = t
+                h = 1  # the fans that hold it: i's, and the larger points' that do
+                if s > i and _has_pair(mring, moff2, s, i, t, closed2):
+                    h += 1
+                if t > i and _has_pair(mring, moff2, t, i, s, closed2):
+                    h += 1
+                hold[c] = h
                 c += 1
             cnt[i] = c - base
     total = 0
     for i in range(na):
         total += cnt[i]
     out = np.empty((total, 3), np.int64)
+    held = np.empty(total, np.int64)
     c = 0
     for i in range(na):
         b = moff2[i]
@@ -1269,8 +1278,130 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
             out[c, 0] = tri[b + r, 0]
             out[c, 1] = tri[b + r, 1]
             out[c, 2] = tri[b + r, 2]
+            held[c] = hold[b + r]
             c += 1
-    return out, extra
+    return out, held, extra
+
+
+@njit(cache=True, parallel=True)
+def front_superfluous(pos, nrm, tri, held, n_chunks):
+    """Which front triangles stay when superfluous ones go (paper section 4).
+
+    A quadrilateral x u y v covered by both triangulations, x y u + x y v
+    and u v x and/or u v y (stand-ins make fans of different levels overlap
+    so), keeps one: the complete diagonal, then the one more fans hold
+    (``held``: 1 to 3), then the better-shaped (``resolve_quads`` of the
+    mesh). Quads are found through the edges, indexed by their smaller
+    vertex, and resolved in the order of that vertex. Returns ``alive``.
+    """
+    n = pos.shape[0]
+    m = tri.shape[0]
+    # the edges of every triangle, under their smaller vertex: (other vertex, triangle)
+    off = np.zeros(n + 1, np.int64)
+    for t in range(m):
+        for k in range(3):
+            a = tri[t, k]
+            b = tri[t, k + 1] if k < 2 else tri[t, 0]
+            off[min(a, b) + 1] += 1
+    for v in range(n):
+        off[v + 1] += off[v]
+    other = np.empty(3 * m, np.int64)
+    etri = np.empty(3 * m, np.int64)
+    fill = off[:n].copy()
+    for t in range(m):
+        for k in range(3):
+            a = tri[t, k]
+            b = tri[t, k + 1] if k < 2 else tri[t, 0]
+            lo = min(a, b)
+            other[fill[lo]] = max(a, b)
+            etri[fill[lo]] = t
+            fill[lo] += 1
+    # a doubly covered quad has a triangle fewer than three fans hold, at x or y
+    suspect = np.zeros(n, np.bool_)
+    for t in range(m):
+        if held[t] < 3:
+            suspect[tri[t, 0]] = True
+            suspect[tri[t, 1]] = True
+            suspect[tri[t, 2]] = True
+    quality = np.empty(m)
+    for ch in prange(n_chunks):
+        for t in range(m * ch // n_chunks, m * (ch + 1) // n_chunks):
+            quality[t] = -_min_angle_cos(pos, tri[t, 0], tri[t, 1], tri[t, 2])
+    # the doubly covered quads, per smaller vertex x, counted then written
+    per = np.zeros(n + 1, np.int64)
+    rows = np.empty((0, 4), np.int64)
+    for rnd in range(2):
+        for ch in prange(n_chunks):
+            ys = np.empty(64, np.int64)
+            ts = np.empty(64, np.int64)
+            for x in range(n * ch // n_chunks, n * (ch + 1) // n_chunks):
+                d = off[x + 1] - off[x]
+                if d < 2:
+                    continue
+                if d > ys.shape[0]:
+                    ys = np.empty(2 * d, np.int64)
+                    ts = np.empty(2 * d, np.int64)
+                # x's edges sorted by their other vertex (insertion sort: a few entries)
+                g = 0
+                for q in range(off[x], off[x + 1]):
+                    yv = other[q]
+                    tv = etri[q]
+                    j = g
+                    while j > 0 and (ys[j - 1] > yv or (ys[j - 1] == yv and ts[j - 1] > tv)):
+                        ys[j] = ys[j - 1]
+                        ts[j] = ts[j - 1]
+                        j -= 1
+                    ys[j] = yv
+                    ts[j] = tv
+                    g += 1
+                c = 0
+                r0 = per[x]
+                i = 0
+                while i < g:
+                    y = ys[i]
+                    e = i + 1
+                    while e < g and ys[e] == y:
+                        e += 1
+                    if e - i >= 2 and (suspect[x] or suspect[y]):
+                        for i1 in range(i, e):
+                            t1 = ts[i1]
+                            u = tri[t1, 0] + tri[t1, 1] + tri[t1, 2] - x - y
+                            for i2 in range(i1 + 1, e):
+                                t2 = ts[i2]
+                                v = tri[t2, 0] + tri[t2, 1] + tri[t2, 2] - x - y
+                                if u == v or not _opposite(pos, nrm, x, y, u, v):
+                                    continue
+                                lo = min(u, v)
+                                hi = max(u, v)
+                                t3 = -1
+                                t4 = -1
+                                for q in range(off[lo], off[lo + 1]):
+                                    if other[q] != hi:
+                                        continue
+                                    t = etri[q]
+                                    w = tri[t, 0] + tri[t, 1] + tri[t, 2] - lo - hi
+                                    if w == x and (t3 < 0 or t < t3):
+                                        t3 = t
+                                    elif w == y and (t4 < 0 or t < t4):
+                                        t4 = t
+                                if t3 < 0 and t4 < 0:
+                                    continue
+                                if rnd == 1:
+                                    rows[r0 + c, 0] = t1
+                                    rows[r0 + c, 1] = t2
+                                    rows[r0 + c, 2] = t3
+                                    rows[r0 + c, 3] = t4
+                                c += 1
+                    i = e
+                if rnd == 0:
+                    per[x + 1] = c
+        if rnd == 0:
+            for v in range(n):
+                per[v + 1] += per[v]
+            rows = np.empty((per[n], 4), np.int64)
+    alive = np.ones(m, np.bool_)
+    resolve_quads(rows, held, quality, alive, True)
+    return alive
 
 
 @njit(cache=True, parallel=True)
