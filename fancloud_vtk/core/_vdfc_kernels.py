@@ -1149,7 +1149,7 @@ def _has_pair(mring, moff, v, s, t, closed):
 
 @njit(cache=True, parallel=True)
 def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring, rep,
-                    n_chunks):
+                    n_chunks, with_held):
     """Distinct triangles of the active fans; returns (triangles, held, extra points).
 
     ``aidx[x]`` is x's index in ``active`` (or -1). A fan neighbour that is
@@ -1164,7 +1164,7 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
     draws no fan of its own), so the front has no ragged edge at the border
     of the view. A triangle is written once, by the smallest of its points
     whose fan holds it, in the order of the fans; ``held``: how many of
-    its points' fans hold it (1 to 3).
+    its points' fans hold it (1 to 3; all 1 unless ``with_held``).
 
     The stand-ins and the triangles run in ``n_chunks`` ranges of fans in
     parallel (1: serially; the result is the same): each fan writes only its
@@ -1259,10 +1259,11 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
                 tri[c, 1] = s
                 tri[c, 2] = t
                 h = 1  # the fans that hold it: i's, and the larger points' that do
-                if s > i and _has_pair(mring, moff2, s, i, t, closed2):
-                    h += 1
-                if t > i and _has_pair(mring, moff2, t, i, s, closed2):
-                    h += 1
+                if with_held:
+                    if s > i and _has_pair(mring, moff2, s, i, t, closed2):
+                        h += 1
+                    if t > i and _has_pair(mring, moff2, t, i, s, closed2):
+                        h += 1
                 hold[c] = h
                 c += 1
             cnt[i] = c - base

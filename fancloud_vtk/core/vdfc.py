@@ -816,7 +816,8 @@ class ViewDependentFanCloud:
             self._rep = self.ring.astype(np.int32 if self.n_nodes < 2**31 else np.int64)
         tri, held, extra = VK.front_triangles(self.positions, self.children, self.parent,
                                               self._state, active, self._aidx, self.open,
-                                              self.ring_offsets, self.ring, self._rep, chunks)
+                                              self.ring_offsets, self.ring, self._rep, chunks,
+                                              bool(superfluous))
         t2 = time.perf_counter()
         n_view = len(active)
         ids, points, normals, level, error = VK.front_points(
