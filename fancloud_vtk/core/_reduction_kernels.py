@@ -264,8 +264,9 @@ def _in_remove(IN, nin, over, y, x):
 
 
 @njit(cache=True)
-def _set_ring(R, rlen, IN, nin, over, x, ring, k):
-    """x's fan becomes ``ring[:k]``; the in-lists change only where the ring did."""
+def _ring_events(R, rlen, x, ring, k, ev_y, ev_x, ev_add, e):
+    """The in-list changes of x's fan becoming ``ring[:k]``, written from ``e`` on: the
+    points it drops (x leaves their in-lists), then those it gains. Returns the new end."""
     for a in range(rlen[x]):
         z = R[x, a]
         kept = False
@@ -274,7 +275,10 @@ def _set_ring(R, rlen, IN, nin, over, x, ring, k):
                 kept = True
                 break
         if not kept:
-            _in_remove(IN, nin, over, z, x)
+            ev_y[e] = z
+            ev_x[e] = x
+            ev_add[e] = False
+            e += 1
     for b in range(k):
         z = ring[b]
         new = True
@@ -283,7 +287,25 @@ def _set_ring(R, rlen, IN, nin, over, x, ring, k):
                 new = False
                 break
         if new:
-            _in_add(IN, nin, over, z, x)
+            ev_y[e] = z
+            ev_x[e] = x
+            ev_add[e] = True
+            e += 1
+    return e
+
+
+@njit(cache=True)
+def _set_ring(R, rlen, IN, nin, over, x, ring, k):
+    """x's fan becomes ``ring[:k]``; the in-lists change only where the ring did."""
+    room = rlen[x] + k
+    ev_y = np.empty(room, np.int64)
+    ev_x = np.empty(room, np.int64)
+    ev_add = np.empty(room, np.bool_)
+    for q in range(_ring_events(R, rlen, x, ring, k, ev_y, ev_x, ev_add, 0)):
+        if ev_add[q]:
+            _in_add(IN, nin, over, ev_y[q], x)
+        else:
+            _in_remove(IN, nin, over, ev_y[q], x)
     for b in range(k):
         R[x, b] = ring[b]
     rlen[x] = k
@@ -807,30 +829,7 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
             x = changed[ch_off[j] + t]
             b = buf_off[i] + t
             k = buf_len[b]
-            for a in range(rlen[x]):  # as _set_ring: the dropped, then the new
-                z = R[x, a]
-                kept = False
-                for c in range(k):
-                    if buf[b, c] == z:
-                        kept = True
-                        break
-                if not kept:
-                    ev_y[e] = z
-                    ev_x[e] = x
-                    ev_add[e] = False
-                    e += 1
-            for c in range(k):
-                z = buf[b, c]
-                new = True
-                for a in range(rlen[x]):
-                    if R[x, a] == z:
-                        new = False
-                        break
-                if new:
-                    ev_y[e] = z
-                    ev_x[e] = x
-                    ev_add[e] = True
-                    e += 1
+            e = _ring_events(R, rlen, x, buf[b], k, ev_y, ev_x, ev_add, e)
             for c in range(k):
                 R[x, c] = buf[b, c]
             rlen[x] = k
