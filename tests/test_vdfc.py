@@ -356,8 +356,9 @@ def test_superfluous_triangles_go_and_leave_one_cover(forest):
     assert abs(lean.stats["triangles_per_point"] - 2.0) < abs(
         plain.stats["triangles_per_point"] - 2.0)
     assert _tri_set(lean.triangles) <= _tri_set(plain.triangles)  # a subset, nothing new
-    # no doubly covered quad is left: on an edge x-y with triangles x y u and x y v
-    # (u, v on opposite sides), neither u v x nor u v y is still drawn
+    # no doubly covered convex quad is left: on an edge x-y with triangles x y u and
+    # x y v (u, v on opposite sides of x-y, and x, y of u-v), neither u v x nor u v y
+    # is still drawn
     tris = _tri_set(lean.triangles)
     by_edge = {}
     for t in tris:
@@ -365,20 +366,31 @@ def test_superfluous_triangles_go_and_leave_one_cover(forest):
         for e, w in (((a, b), c), ((b, c), a), ((a, c), b)):
             by_edge.setdefault(e, []).append(w)
     pts, nrm = lean.points, lean.normals
+
+    def apart(a, b, c, d):  # c and d on opposite sides of a-b, seen along the normals
+        n = nrm[a] + nrm[b]
+        e = pts[b] - pts[a]
+        return np.dot(np.cross(e, pts[c] - pts[a]), n) * np.dot(
+            np.cross(e, pts[d] - pts[a]), n) < 0
+
     left = 0
     for (x, y), ws in by_edge.items():
         for i, u in enumerate(ws):
             for v in ws[i + 1:]:
-                n = nrm[x] + nrm[y]
-                e = pts[y] - pts[x]
-                su = np.dot(np.cross(e, pts[u] - pts[x]), n)
-                sv = np.dot(np.cross(e, pts[v] - pts[x]), n)
-                if su * sv < 0 and (tuple(sorted((u, v, x))) in tris
-                                    or tuple(sorted((u, v, y))) in tris):
+                if apart(x, y, u, v) and apart(u, v, x, y) and (
+                        tuple(sorted((u, v, x))) in tris or tuple(sorted((u, v, y))) in tris):
                     left += 1
     assert left == 0
-    # every point still has a triangle
+    # every point still has a triangle, and no place of the terrain loses its cover
     assert len(np.unique(lean.triangles)) == len(np.unique(plain.triangles))
+    from fancloud_vtk.bench_vdfc import _surface_errors
+
+    fine = np.zeros((4 * N, 4 * N))  # samples 4 x finer than the grid (heights unused)
+    everywhere = np.ones(fine.shape, bool)
+    cover = [_surface_errors(f.points, f.triangles, fine, (SPACING / 4, SPACING / 4),
+                             (0.0, 0.0), everywhere)[2] > 0 for f in (plain, lean)]
+    assert cover[0].sum() > 0.5 * fine.size
+    assert not (cover[0] & ~cover[1]).any()
 
 
 def test_triangles_per_point_about_two(forest):

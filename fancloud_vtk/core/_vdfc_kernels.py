@@ -1288,9 +1288,9 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
 def front_superfluous(pos, nrm, tri, held, n_chunks):
     """Which front triangles stay when superfluous ones go (paper section 4).
 
-    A quadrilateral x u y v covered by both triangulations, x y u + x y v
-    and u v x and/or u v y (stand-ins make fans of different levels overlap
-    so), keeps one: the complete diagonal, then the one more fans hold
+    A convex quadrilateral x u y v covered by both triangulations, x y u +
+    x y v and u v x and/or u v y (stand-ins make fans of different levels
+    overlap so), keeps one: the complete diagonal, then the one more fans hold
     (``held``: 1 to 3), then the better-shaped (``resolve_quads`` of the
     mesh). Quads are found through the edges, indexed by their smaller
     vertex, and resolved in the order of that vertex. Returns ``alive``.
@@ -1370,7 +1370,10 @@ def front_superfluous(pos, nrm, tri, held, n_chunks):
                             for i2 in range(i1 + 1, e):
                                 t2 = ts[i2]
                                 v = tri[t2, 0] + tri[t2, 1] + tri[t2, 2] - x - y
-                                if u == v or not _opposite(pos, nrm, x, y, u, v):
+                                # a convex quad: each diagonal separates the other's ends
+                                # (else u v x or u v y covers what x y u + x y v do not)
+                                if u == v or not _opposite(pos, nrm, x, y, u, v) \
+                                        or not _opposite(pos, nrm, u, v, x, y):
                                     continue
                                 lo = min(u, v)
                                 hi = max(u, v)
@@ -1413,10 +1416,10 @@ def front_points(active, extra, aidx, pos, nrm, level, err, n_chunks):
     na = active.shape[0]
     n = na + extra.shape[0]
     ids = np.empty(n, np.int64)
-    p = np.empty((n, 3), np.float64)
-    q = np.empty((n, 3), np.float64)
+    p = np.empty((n, 3), pos.dtype)
+    q = np.empty((n, 3), nrm.dtype)
     lv = np.empty(n, level.dtype)
-    e = np.empty(n, np.float64)
+    e = np.empty(n, err.dtype)
     for ch in prange(n_chunks):
         for i in range(n * ch // n_chunks, n * (ch + 1) // n_chunks):
             x = active[i] if i < na else extra[i - na]
