@@ -976,10 +976,11 @@ def _refine_memo(pos, radius, bound, child, planes, eye, scale, memo, tick, x):
 @njit(cache=True, parallel=True)
 def front_decisions(pos, radius, bound, child, parent, front, planes, eye, scale, memo, tick,
                     n_chunks):
-    """What every front node does for the new camera: (decision, ancestors tested).
+    """What every front node does for the new camera: (decision, ancestors tested, in view).
 
     The decision is -2 when the node splits, else the highest ancestor that
-    no longer needs refining, to which it gives way (-1: none, it stays).
+    no longer needs refining, to which it gives way (-1: none, it stays; then
+    whether it is in the frustum is known too).
     These tests depend on the camera only, so they run in ``n_chunks``
     ranges of the front in parallel (two threads may both make an
     ancestor's test and write the same ``memo``); :func:`update_front`
@@ -988,6 +989,7 @@ def front_decisions(pos, radius, bound, child, parent, front, planes, eye, scale
     n_front = front.shape[0]
     dec = np.empty(n_front, np.int64)
     walk = np.zeros(n_front, np.int64)
+    vis = np.zeros(n_front, np.bool_)
     for ch in prange(n_chunks):
         for i in range(n_front * ch // n_chunks, n_front * (ch + 1) // n_chunks):
             x = front[i]
@@ -1005,12 +1007,29 @@ def front_decisions(pos, radius, bound, child, parent, front, planes, eye, scale
                 y = parent[y]
             dec[i] = top_node
             walk[i] = w
-    return dec, walk
+            if top_node < 0:
+                vis[i] = _visible(pos, radius, planes, x)
+    return dec, walk, vis
+
+
+@njit(cache=True)
+def _push(out, ovis, m, x, v):
+    """Append x (in view: v) at m, growing the arrays when full."""
+    if m >= out.shape[0]:
+        bigger = np.empty(2 * out.shape[0], np.int64)
+        bigger[:m] = out[:m]
+        out = bigger
+        more = np.empty(out.shape[0], np.bool_)
+        more[:m] = ovis[:m]
+        ovis = more
+    out[m] = x
+    ovis[m] = v
+    return out, ovis
 
 
 @njit(cache=True)
 def update_front(pos, radius, bound, child, parent, state, front, planes, eye, scale, memo,
-                 tick, dec, walk):
+                 tick, dec, walk, vis):
     """Move the front to a new camera; returns (front, active, nodes visited).
 
     Starting from the previous front, a front node either splits (while its
@@ -1018,10 +1037,12 @@ def update_front(pos, radius, bound, child, parent, state, front, planes, eye, s
     longer needs refining (``dec``, ``walk``: :func:`front_decisions`); only
     the nodes that change state are visited besides the front itself (an
     ancestor's test is made once per frame: ``memo``, ``tick``).
-    ``active``: the front nodes in the frustum.
+    ``active``: the front nodes in the frustum (``vis``: of the nodes that
+    stay, from :func:`front_decisions`).
     """
     n_front = front.shape[0]
     out = np.empty(max(2 * n_front + 16, 64), np.int64)
+    ovis = np.empty(out.shape[0], np.bool_)
     m = 0
     visited = 0
     stack = np.empty(256, np.int64)
@@ -1050,11 +1071,7 @@ def update_front(pos, radius, bound, child, parent, state, front, planes, eye, s
                     top += 2
                 else:
                     state[c] = FRONT
-                    if m >= out.shape[0]:
-                        bigger = np.empty(2 * out.shape[0], np.int64)
-                        bigger[:m] = out[:m]
-                        out = bigger
-                    out[m] = c
+                    out, ovis = _push(out, ovis, m, c, _visible(pos, radius, planes, c))
                     m += 1
             continue
         # the highest ancestor that is no longer refined
@@ -1079,12 +1096,9 @@ def update_front(pos, radius, bound, child, parent, state, front, planes, eye, s
                     stack[sp] = child[c, 0]
                     stack[sp + 1] = child[c, 1]
                     sp += 2
-            x = top_node
-        if m >= out.shape[0]:
-            bigger = np.empty(2 * out.shape[0], np.int64)
-            bigger[:m] = out[:m]
-            out = bigger
-        out[m] = x
+            out, ovis = _push(out, ovis, m, top_node, _visible(pos, radius, planes, top_node))
+        else:
+            out, ovis = _push(out, ovis, m, x, vis[i])
         m += 1
     # drop the entries collapsed after they were written; the active ones in view
     k = 0
@@ -1096,7 +1110,7 @@ def update_front(pos, radius, bound, child, parent, state, front, planes, eye, s
             state[x] = -FRONT  # mark as written once
             out[k] = x
             k += 1
-            if _visible(pos, radius, planes, x):
+            if ovis[i]:
                 active[na] = x
                 na += 1
     for i in range(k):
@@ -1172,12 +1186,16 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
     """
     na = active.shape[0]
     moff = np.zeros(na + 1, np.int64)
+    for ch in prange(n_chunks):  # the fan sizes (scattered reads), then their sums
+        for i in range(na * ch // n_chunks, na * (ch + 1) // n_chunks):
+            x = active[i]
+            moff[i + 1] = ring_off[x + 1] - ring_off[x]
     for i in range(na):
-        x = active[i]
-        moff[i + 1] = moff[i] + ring_off[x + 1] - ring_off[x]
+        moff[i + 1] += moff[i]
     n = moff[na]
     mring = np.empty(n, np.int64)
     closed = np.empty(na, np.bool_)
+    pending = np.zeros(na, np.bool_)  # fans with a new stand-in outside the view
     # stand-ins (a new one outside the view: -2 - its node, numbered below in order)
     for ch in prange(n_chunks):
         lo = na * ch // n_chunks
@@ -1196,25 +1214,31 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
                     mring[moff[i] + j] = -1
                 else:
                     v = aidx[y]
-                    mring[moff[i] + j] = v if v >= 0 else -2 - y
+                    if v < 0:
+                        v = -2 - y
+                        pending[i] = True
+                    mring[moff[i] + j] = v
     extra = np.empty(64, np.int64)
     ne = 0
-    for q in range(n):
-        v = mring[q]
-        if v < -1:
-            y = -2 - v
-            v = aidx[y]
-            if v < 0:
-                if ne >= extra.shape[0]:
-                    bigger = np.empty(2 * extra.shape[0], np.int64)
-                    for e in range(ne):
-                        bigger[e] = extra[e]
-                    extra = bigger
-                extra[ne] = y
-                v = na + ne
-                aidx[y] = v
-                ne += 1
-            mring[q] = v
+    for i in range(na):  # numbered in the order of first use, as a serial pass would
+        if not pending[i]:
+            continue
+        for q in range(moff[i], moff[i + 1]):
+            v = mring[q]
+            if v < -1:
+                y = -2 - v
+                v = aidx[y]
+                if v < 0:
+                    if ne >= extra.shape[0]:
+                        bigger = np.empty(2 * extra.shape[0], np.int64)
+                        for e in range(ne):
+                            bigger[e] = extra[e]
+                        extra = bigger
+                    extra[ne] = y
+                    v = na + ne
+                    aidx[y] = v
+                    ne += 1
+                mring[q] = v
     ex = np.empty(ne, np.int64)
     for e in range(ne):
         ex[e] = extra[e]
@@ -1267,20 +1291,20 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
                 hold[c] = h
                 c += 1
             cnt[i] = c - base
-    total = 0
+    at = np.empty(na + 1, np.int64)  # where each fan's rows go
+    at[0] = 0
     for i in range(na):
-        total += cnt[i]
-    out = np.empty((total, 3), np.int64)
-    held = np.empty(total, np.int64)
-    c = 0
-    for i in range(na):
-        b = moff2[i]
-        for r in range(cnt[i]):
-            out[c, 0] = tri[b + r, 0]
-            out[c, 1] = tri[b + r, 1]
-            out[c, 2] = tri[b + r, 2]
-            held[c] = hold[b + r]
-            c += 1
+        at[i + 1] = at[i] + cnt[i]
+    out = np.empty((at[na], 3), np.int64)
+    held = np.empty(at[na], np.int64)
+    for ch in prange(n_chunks):
+        for i in range(na * ch // n_chunks, na * (ch + 1) // n_chunks):
+            b = moff2[i]
+            for r in range(cnt[i]):
+                out[at[i] + r, 0] = tri[b + r, 0]
+                out[at[i] + r, 1] = tri[b + r, 1]
+                out[at[i] + r, 2] = tri[b + r, 2]
+                held[at[i] + r] = hold[b + r]
     return out, held, extra
 
 

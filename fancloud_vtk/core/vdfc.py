@@ -806,11 +806,11 @@ class ViewDependentFanCloud:
         # two cores halve the work of a large front; a small one is not worth waking them
         chunks = numba.get_num_threads() if len(self._front) >= PARALLEL_FRONT else 1
         args = (self.positions, self.radius, self.bound, self.children, self.parent)
-        dec, walk = VK.front_decisions(*args, self._front, planes, eye, e_max / d_max,
-                                       self._memo, self._tick, chunks)
+        dec, walk, vis = VK.front_decisions(*args, self._front, planes, eye, e_max / d_max,
+                                            self._memo, self._tick, chunks)
         front, active, visited = VK.update_front(*args, self._state, self._front, planes, eye,
                                                  e_max / d_max, self._memo, self._tick, dec,
-                                                 walk)
+                                                 walk, vis)
         self._front = front
         t1 = time.perf_counter()
         self._aidx[active] = np.arange(len(active))
