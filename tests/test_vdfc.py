@@ -391,6 +391,8 @@ def test_superfluous_triangles_go_and_leave_one_cover(forest):
                              (0.0, 0.0), everywhere)[2] > 0 for f in (plain, lean)]
     assert cover[0].sum() > 0.5 * fine.size
     assert not (cover[0] & ~cover[1]).any()
+    with pytest.raises(ValueError, match="superfluous must be True or False"):
+        vd2.front_arrays(OBLIQUE, 0.01, 8.0, superfluous="yes")
 
 
 def test_triangles_per_point_about_two(forest):

@@ -799,6 +799,8 @@ class ViewDependentFanCloud:
         e_max = _positive("e_max", e_max)
         d_max = self.default_d_max(cam) if d_max is None else _positive("d_max", d_max)
         eye, planes = cam.frustum()
+        if not isinstance(superfluous, (bool, np.bool_)):
+            raise ValueError(f"superfluous must be True or False, got {superfluous!r}")
         tu = time.perf_counter()  # the camera read
         if not incremental:
             self.reset_front()
@@ -819,7 +821,7 @@ class ViewDependentFanCloud:
         tri, held, extra = VK.front_triangles(self.positions, self.children, self.parent,
                                               self._state, active, self._aidx, self.open,
                                               self.ring_offsets, self.ring, self._rep, chunks,
-                                              bool(superfluous))
+                                              superfluous)
         t2 = time.perf_counter()
         n_view = len(active)
         ids, points, normals, level, error = VK.front_points(
