@@ -25,7 +25,8 @@ frames
     incremental from the previous frame, with its phases), the time to make
     the ``vtkPolyData`` of it, the active points and the triangles per
     active point; the same path again with superfluous triangles removed
-    (``superfluous=True``: its time and triangles per point); then
+    (``superfluous=True``: its time and triangles per point), and again
+    with every front kernel on one thread (for the ratio); then
     ``flythrough`` offscreen on
     ``--render-frames`` cameras spread over the path (PNG frames in
     ``DIR/frames``).
@@ -248,7 +249,7 @@ def frame_summary(fr: dict, n: int) -> dict:
 
 
 def frame_rows(fr: dict, s: dict, data: str, render: dict | None,
-               lean: dict | None = None) -> list[dict]:
+               lean: dict | None = None, serial: dict | None = None) -> list[dict]:
     nf = len(fr["frames"])
     path = (f"terrain_path(bounds, {nf}), e_max {fr['e_max']:g} m at d_max "
             f"{fr['d_max']:,.0f} m (refine while e(r) > e_max d(r) / d_max)")
@@ -284,6 +285,13 @@ def frame_rows(fr: dict, s: dict, data: str, render: dict | None,
                  f"{lean['tpp_mean']:.3f}", "", f"{TARGET_TPP:g} +- {TPP_TOLERANCE:g}",
                  _ok(abs(lean["tpp_mean"] - TARGET_TPP) <= TPP_TOLERANCE)),
         ]
+    if serial is not None:
+        rows.append(_row(
+            "frames, one thread: front update, mean", data,
+            f"{path}; the same fly-through with every front kernel serial "
+            f"(PARALLEL_FRONT never reached); max {serial['max_ms']:.1f} ms; ratio to the "
+            f"default {serial['mean_ms'] / max(s['mean_ms'], 1e-12):.2f}; for information",
+            f"{serial['mean_ms']:.2f}", "ms"))
     if render is not None and render.get("rows"):
         r = render["rows"]
         w, h = render["size"]
@@ -683,6 +691,16 @@ def run_vdfc(args, argv: list[str]) -> dict:
             lean = frame_summary(run_frames(vd, cams, args.e_max, d_max, quiet, True),
                                  fc.n_points)
             res["frames"]["superfluous"] = lean
+            _log(quiet, "frames again, every front kernel on one thread")
+            import fancloud_vtk.core.vdfc as vdfc_module
+
+            saved = vdfc_module.PARALLEL_FRONT
+            vdfc_module.PARALLEL_FRONT = 2**62  # never split: the serial path, same result
+            try:
+                res["frames"]["serial"] = frame_summary(
+                    run_frames(vd, cams, args.e_max, d_max, quiet), fc.n_points)
+            finally:
+                vdfc_module.PARALLEL_FRONT = saved
     render = None
     if "frames" in parts:
         if args.render_frames:
@@ -693,7 +711,8 @@ def run_vdfc(args, argv: list[str]) -> dict:
             except Exception as exc:  # an offscreen render can fail on a machine without GL
                 render = {"error": f"{type(exc).__name__}: {exc}"}
             res["render"] = render
-        rows += frame_rows(fr, s, data, render, res["frames"].get("superfluous"))
+        rows += frame_rows(fr, s, data, render, res["frames"].get("superfluous"),
+                           res["frames"].get("serial"))
         notes += phase_notes(fr["phases"], n_frames)
     pr = None
     if "peers" in parts:
