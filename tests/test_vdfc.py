@@ -337,7 +337,8 @@ def test_parallel_front_triangles_equal_the_serial_ones(forest, monkeypatch):
     for threshold in (0, 10**9):  # every front on all threads; every front serially
         monkeypatch.setattr(vdfc_module, "PARALLEL_FRONT", threshold)
         vd = _fresh(forest)
-        fronts[threshold] = [vd.front_arrays(cam, 0.004, 8.0) for cam in path]
+        fronts[threshold] = [vd.front_arrays(cam, 0.004, 8.0, superfluous=bool(i % 2))
+                             for i, cam in enumerate(path)]
     for a, b in zip(*fronts.values(), strict=True):
         assert a.stats["border"] > 0  # the extras are numbered in the same order too
         assert np.array_equal(a.point_data["node_id"], b.point_data["node_id"])

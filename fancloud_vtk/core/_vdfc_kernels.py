@@ -1317,7 +1317,8 @@ def front_superfluous(pos, nrm, tri, held, n_chunks):
     overlap so), keeps one: the complete diagonal, then the one more fans hold
     (``held``: 1 to 3), then the better-shaped (``resolve_quads`` of the
     mesh). Quads are found through the edges, indexed by their smaller
-    vertex, and resolved in the order of that vertex. Returns ``alive``.
+    vertex (in ``n_chunks`` ranges in parallel), and resolved in the order of
+    that vertex. Returns ``alive``.
     """
     n = pos.shape[0]
     m = tri.shape[0]
@@ -1352,81 +1353,92 @@ def front_superfluous(pos, nrm, tri, held, n_chunks):
     for ch in prange(n_chunks):
         for t in range(m * ch // n_chunks, m * (ch + 1) // n_chunks):
             quality[t] = -_min_angle_cos(pos, tri[t, 0], tri[t, 1], tri[t, 2])
-    # the doubly covered quads, per smaller vertex x, counted then written
-    per = np.zeros(n + 1, np.int64)
-    rows = np.empty((0, 4), np.int64)
-    for rnd in range(2):
-        for ch in prange(n_chunks):
-            ys = np.empty(64, np.int64)
-            ts = np.empty(64, np.int64)
-            for x in range(n * ch // n_chunks, n * (ch + 1) // n_chunks):
-                d = off[x + 1] - off[x]
-                if d < 2:
-                    continue
-                if d > ys.shape[0]:
-                    ys = np.empty(2 * d, np.int64)
-                    ts = np.empty(2 * d, np.int64)
-                # x's edges sorted by their other vertex (insertion sort: a few entries)
-                g = 0
-                for q in range(off[x], off[x + 1]):
-                    yv = other[q]
-                    tv = etri[q]
-                    j = g
-                    while j > 0 and (ys[j - 1] > yv or (ys[j - 1] == yv and ts[j - 1] > tv)):
-                        ys[j] = ys[j - 1]
-                        ts[j] = ts[j - 1]
-                        j -= 1
-                    ys[j] = yv
-                    ts[j] = tv
-                    g += 1
-                c = 0
-                r0 = per[x]
-                i = 0
-                while i < g:
-                    y = ys[i]
-                    e = i + 1
-                    while e < g and ys[e] == y:
-                        e += 1
-                    if e - i >= 2 and (suspect[x] or suspect[y]):
-                        for i1 in range(i, e):
-                            t1 = ts[i1]
-                            u = tri[t1, 0] + tri[t1, 1] + tri[t1, 2] - x - y
-                            for i2 in range(i1 + 1, e):
-                                t2 = ts[i2]
-                                v = tri[t2, 0] + tri[t2, 1] + tri[t2, 2] - x - y
-                                # a convex quad: each diagonal separates the other's ends
-                                # (else u v x or u v y covers what x y u + x y v do not)
-                                if u == v or not _opposite(pos, nrm, x, y, u, v) \
-                                        or not _opposite(pos, nrm, u, v, x, y):
+    # the doubly covered quads, per smaller vertex x, in one pass: chunk ch writes from
+    # room[ch] on, room enough for every pair of x's edge entries (pages never written
+    # are never touched), and the chunks' rows are joined in order
+    room = np.zeros(n_chunks + 1, np.int64)
+    for ch in range(n_chunks):
+        r = 0
+        for x in range(n * ch // n_chunks, n * (ch + 1) // n_chunks):
+            d = off[x + 1] - off[x]
+            r += d * (d - 1) // 2
+        room[ch + 1] = room[ch] + r
+    found = np.empty((room[n_chunks], 4), np.int64)
+    count = np.zeros(n_chunks, np.int64)
+    for ch in prange(n_chunks):
+        ys = np.empty(64, np.int64)
+        ts = np.empty(64, np.int64)
+        c = room[ch]
+        for x in range(n * ch // n_chunks, n * (ch + 1) // n_chunks):
+            d = off[x + 1] - off[x]
+            if d < 2:
+                continue
+            if d > ys.shape[0]:
+                ys = np.empty(2 * d, np.int64)
+                ts = np.empty(2 * d, np.int64)
+            # x's edges sorted by their other vertex (insertion sort: a few entries)
+            g = 0
+            for q in range(off[x], off[x + 1]):
+                yv = other[q]
+                tv = etri[q]
+                j = g
+                while j > 0 and (ys[j - 1] > yv or (ys[j - 1] == yv and ts[j - 1] > tv)):
+                    ys[j] = ys[j - 1]
+                    ts[j] = ts[j - 1]
+                    j -= 1
+                ys[j] = yv
+                ts[j] = tv
+                g += 1
+            i = 0
+            while i < g:
+                y = ys[i]
+                e = i + 1
+                while e < g and ys[e] == y:
+                    e += 1
+                if e - i >= 2 and (suspect[x] or suspect[y]):
+                    for i1 in range(i, e):
+                        t1 = ts[i1]
+                        u = tri[t1, 0] + tri[t1, 1] + tri[t1, 2] - x - y
+                        for i2 in range(i1 + 1, e):
+                            t2 = ts[i2]
+                            v = tri[t2, 0] + tri[t2, 1] + tri[t2, 2] - x - y
+                            # a convex quad: each diagonal separates the other's ends
+                            # (else u v x or u v y covers what x y u + x y v do not)
+                            if u == v or not _opposite(pos, nrm, x, y, u, v) \
+                                    or not _opposite(pos, nrm, u, v, x, y):
+                                continue
+                            lo = min(u, v)
+                            hi = max(u, v)
+                            t3 = -1
+                            t4 = -1
+                            for q in range(off[lo], off[lo + 1]):
+                                if other[q] != hi:
                                     continue
-                                lo = min(u, v)
-                                hi = max(u, v)
-                                t3 = -1
-                                t4 = -1
-                                for q in range(off[lo], off[lo + 1]):
-                                    if other[q] != hi:
-                                        continue
-                                    t = etri[q]
-                                    w = tri[t, 0] + tri[t, 1] + tri[t, 2] - lo - hi
-                                    if w == x and (t3 < 0 or t < t3):
-                                        t3 = t
-                                    elif w == y and (t4 < 0 or t < t4):
-                                        t4 = t
-                                if t3 < 0 and t4 < 0:
-                                    continue
-                                if rnd == 1:
-                                    rows[r0 + c, 0] = t1
-                                    rows[r0 + c, 1] = t2
-                                    rows[r0 + c, 2] = t3
-                                    rows[r0 + c, 3] = t4
-                                c += 1
-                    i = e
-                if rnd == 0:
-                    per[x + 1] = c
-        if rnd == 0:
-            for v in range(n):
-                per[v + 1] += per[v]
-            rows = np.empty((per[n], 4), np.int64)
+                                t = etri[q]
+                                w = tri[t, 0] + tri[t, 1] + tri[t, 2] - lo - hi
+                                if w == x and (t3 < 0 or t < t3):
+                                    t3 = t
+                                elif w == y and (t4 < 0 or t < t4):
+                                    t4 = t
+                            if t3 < 0 and t4 < 0:
+                                continue
+                            found[c, 0] = t1
+                            found[c, 1] = t2
+                            found[c, 2] = t3
+                            found[c, 3] = t4
+                            c += 1
+                i = e
+        count[ch] = c - room[ch]
+    total = 0
+    for ch in range(n_chunks):
+        total += count[ch]
+    rows = np.empty((total, 4), np.int64)
+    r = 0
+    for ch in range(n_chunks):
+        for q in range(room[ch], room[ch] + count[ch]):
+            for k in range(4):
+                rows[r, k] = found[q, k]
+            r += 1
     alive = np.ones(m, np.bool_)
     resolve_quads(rows, held, quality, alive, True)
     return alive
