@@ -1344,15 +1344,12 @@ def front_superfluous(pos, nrm, tri, held, n_chunks):
             fill[lo] += 1
     # a doubly covered quad has a triangle fewer than three fans hold, at x or y
     suspect = np.zeros(n, np.bool_)
-    for t in range(m):
-        if held[t] < 3:
-            suspect[tri[t, 0]] = True
-            suspect[tri[t, 1]] = True
-            suspect[tri[t, 2]] = True
-    quality = np.empty(m)
-    for ch in prange(n_chunks):
+    for ch in prange(n_chunks):  # threads may both write True to a point: the same value
         for t in range(m * ch // n_chunks, m * (ch + 1) // n_chunks):
-            quality[t] = -_min_angle_cos(pos, tri[t, 0], tri[t, 1], tri[t, 2])
+            if held[t] < 3:
+                suspect[tri[t, 0]] = True
+                suspect[tri[t, 1]] = True
+                suspect[tri[t, 2]] = True
     # the doubly covered quads, per smaller vertex x, in one pass: chunk ch writes from
     # room[ch] on, room enough for every pair of x's edge entries (pages never written
     # are never touched), and the chunks' rows are joined in order
@@ -1372,6 +1369,14 @@ def front_superfluous(pos, nrm, tri, held, n_chunks):
         for x in range(n * ch // n_chunks, n * (ch + 1) // n_chunks):
             d = off[x + 1] - off[x]
             if d < 2:
+                continue
+            near = suspect[x]  # a quad here needs x or one of its y to be suspect
+            if not near:
+                for q in range(off[x], off[x + 1]):
+                    if suspect[other[q]]:
+                        near = True
+                        break
+            if not near:
                 continue
             if d > ys.shape[0]:
                 ys = np.empty(2 * d, np.int64)
@@ -1402,10 +1407,7 @@ def front_superfluous(pos, nrm, tri, held, n_chunks):
                         for i2 in range(i1 + 1, e):
                             t2 = ts[i2]
                             v = tri[t2, 0] + tri[t2, 1] + tri[t2, 2] - x - y
-                            # a convex quad: each diagonal separates the other's ends
-                            # (else u v x or u v y covers what x y u + x y v do not)
-                            if u == v or not _opposite(pos, nrm, x, y, u, v) \
-                                    or not _opposite(pos, nrm, u, v, x, y):
+                            if u == v:
                                 continue
                             lo = min(u, v)
                             hi = max(u, v)
@@ -1421,6 +1423,11 @@ def front_superfluous(pos, nrm, tri, held, n_chunks):
                                 elif w == y and (t4 < 0 or t < t4):
                                     t4 = t
                             if t3 < 0 and t4 < 0:
+                                continue
+                            # a convex quad: each diagonal separates the other's ends
+                            # (else u v x or u v y covers what x y u + x y v do not)
+                            if not _opposite(pos, nrm, x, y, u, v) \
+                                    or not _opposite(pos, nrm, u, v, x, y):
                                 continue
                             found[c, 0] = t1
                             found[c, 1] = t2
@@ -1439,6 +1446,13 @@ def front_superfluous(pos, nrm, tri, held, n_chunks):
             for k in range(4):
                 rows[r, k] = found[q, k]
             r += 1
+    # the shapes of the quads' triangles only (resolve_quads reads no others)
+    quality = np.zeros(m)
+    for q in prange(total):
+        for k in range(4):
+            t = rows[q, k]
+            if t >= 0:
+                quality[t] = -_min_angle_cos(pos, tri[t, 0], tri[t, 1], tri[t, 2])
     alive = np.ones(m, np.bool_)
     resolve_quads(rows, held, quality, alive, True)
     return alive
