@@ -292,8 +292,7 @@ VDFC_PARAMS: tuple[Param, ...] = (
           "width / height of the view (0: 1, or the viewer's when it follows a plotter)",
           range=(0.0, 1e6)),
     Param("superfluous", "bool", False,
-          "also remove the front's superfluous triangles (a quadrilateral covered by both "
-          "diagonals' triangles keeps one pair, paper section 4): about 2.0 triangles per "
-          "point instead of 2.15 and far fewer overlapping layers, at about twice the "
-          "update time"),
+          "also remove the front's superfluous triangles (a convex quadrilateral covered by "
+          "both diagonals' triangles keeps one pair, paper section 4): about 2.0 triangles "
+          "per point instead of 2.15, at about twice the update time"),
 )
