@@ -366,14 +366,13 @@ class Front(TriangleMesh):
     bounding spheres meet the frustum, and ``border``, front nodes just
     outside it that the fans of the former reach), ``triangles`` (and
     ``distinct``, the count before superfluous ones were removed: equal
-    unless asked),
-    ``front`` (front nodes, in and out of view), ``visited`` (nodes looked
-    at by this update), ``seconds`` (the whole call, from the camera to
-    these arrays; of which, besides reading the camera, ``seconds_update``
-    moving the front,
-    ``seconds_triangles`` the active fans' triangles, ``seconds_points``
-    gathering the points' arrays and ``seconds_superfluous`` removing
-    superfluous triangles) and ``triangles_per_point``.
+    unless asked), ``front`` (front nodes, in and out of view), ``visited``
+    (nodes looked at by this update), ``seconds`` (the whole call, from the
+    camera to these arrays; of which, besides reading the camera,
+    ``seconds_update`` moving the front, ``seconds_triangles`` the active
+    fans' triangles, ``seconds_points`` gathering the points' arrays and
+    ``seconds_superfluous`` removing superfluous triangles) and
+    ``triangles_per_point``.
     """
 
     @property
