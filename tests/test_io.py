@@ -819,7 +819,8 @@ def test_vtk_file_without_points_is_an_error(tmp_path):
     writer.SetFileName(str(path))
     writer.SetInputData(vtkPolyData())
     writer.Write()
-    with pytest.raises(FileReadError, match="no points"):
+    # VTK 9.2's reader itself reports "No Points element ..."; later ones read it empty
+    with pytest.raises(FileReadError, match="(?i)no points"):
         read_point_cloud(path)
 
 
