@@ -265,3 +265,34 @@ def test_exact_greedy_order(sphere_fans, method):
     # the same kind of result as the rounds: a closed surface, near-uniform with distance
     mesh = fan_cloud_to_mesh(out)
     assert mesh.n_triangles == 2 * 800 - 4
+
+
+@pytest.mark.parametrize("weights, method", [((1, 1, 50, 0), "entropy"), ((1, 0, 0, 0), "entropy"),
+                                             ((1, 1, 50, 0), "error")])
+def test_reduce_without_hierarchy_is_its_coarsest_level(sphere_fans, weights, method):
+    """``reduce`` alone records no logs; its result is still the hierarchy's level."""
+    out = reduce(sphere_fans, keep=0.176, weights=weights, method=method)
+    again, h = reduce(sphere_fans, keep=0.176, weights=weights, method=method,
+                      return_hierarchy=True)
+    assert fingerprint(*_arrays(out)) == fingerprint(*_arrays(again))
+    assert fingerprint(*_arrays(out)) == fingerprint(*_arrays(h.level(out.n_points)))
+    assert out.info == again.info
+    np.testing.assert_array_equal(out.rotated, again.rotated)
+
+
+def test_overflowing_in_lists_fall_back_to_one_at_a_time(sphere_fans, monkeypatch):
+    """In-lists too short for every point: the rounds leave those points to the one-at-a-time
+    fallback, whose logs must land in the hierarchy (levels and round trip stay exact)."""
+    from fancloud_vtk.core import reduction
+
+    monkeypatch.setattr(reduction, "IN_WIDTH", 5)
+    out, h = reduce(sphere_fans, 600, return_hierarchy=True)
+    assert out.n_points == 600
+    out.validate()
+    assert fingerprint(*_arrays(out)) == fingerprint(*_arrays(reduce(sphere_fans, 600)))
+    back = h.level(4000)
+    np.testing.assert_array_equal(back.ring, sphere_fans.ring)
+    np.testing.assert_array_equal(back.offsets, sphere_fans.offsets)
+    mid = h.level(2000)
+    mid.validate()
+    assert fingerprint(*_arrays(mid)) == fingerprint(*_arrays(reduce(sphere_fans, 2000)))

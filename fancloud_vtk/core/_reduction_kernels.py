@@ -863,22 +863,24 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
 
 def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len,
                  buf_open, ok, frames, limit, counters, order, detail, rem_off, rem_ring,
-                 rem_open, log_off, ent_x, ent_open, ent_off, ent_ring, stamp):
+                 rem_open, log_off, ent_x, ent_open, ent_off, ent_ring, stamp, write_logs=True):
     """Phase B: log (in parallel) and apply (in index order) the removals a round makes.
 
     A point whose fans cannot all be re-formed stays, its key set to inf.
-    Returns the fans whose rings changed (each once).
+    Returns the fans whose rings changed (each once). ``write_logs`` False:
+    nothing is logged (and the log counters stay).
     """
     idx, rem_at, ent_at, ring_at = _plan_commit(rlen, IN, nin, key, acc, ok, limit, counters)
     m = len(idx)
-    r0 = int(counters[1])
-    _write_logs(R, rlen, ropen, IN, nin, acc, frames, idx, rem_at, ent_at, ring_at, r0, order,
-                detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off, ent_ring)
+    if write_logs:
+        _write_logs(R, rlen, ropen, IN, nin, acc, frames, idx, rem_at, ent_at, ring_at,
+                    int(counters[1]), order, detail, rem_off, rem_ring, rem_open, log_off, ent_x,
+                    ent_open, ent_off, ent_ring)
+        counters[2] = ent_at[m]
+        counters[3] = ring_at[m]
+        counters[4] = rem_at[m]
     counters[1] += m
     counters[0] -= m
-    counters[2] = ent_at[m]
-    counters[3] = ring_at[m]
-    counters[4] = rem_at[m]
     counters[5] += 1
     return _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
                   buf_open, stamp, counters[5], get_num_threads() if m > 64 else 1)

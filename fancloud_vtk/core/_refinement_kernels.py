@@ -615,11 +615,23 @@ def commit_batch(points, normals, colors, R, rlen, ropen, slot0, final, ring_r, 
 
 @njit(cache=True)
 def log_batch(R, rlen, ropen, final, xlist, n_xs, par, wts, lg_par, lg_wts, lg_nx, n0, rr,
-              rr_off, ex, ex_open, ex_off, er, counters):
-    """Log the committed insertions in their numbering order (after ``commit_batch``)."""
+              rr_off, ex, ex_open, ex_off, er, counters, rings=True):
+    """Log the committed insertions in their numbering order (after ``commit_batch``).
+
+    ``rings`` False: only the parents, weights and counts of changed fans
+    (what the point arrays need), not the rings a hierarchy needs.
+    """
     for i in range(final.shape[0]):
         f = final[i]
         if f < 0:
+            continue
+        if not rings:
+            j = f - n0
+            for t in range(3):
+                lg_par[j, t] = par[i, t]
+                lg_wts[j, t] = wts[i, t]
+            lg_nx[j] = n_xs[i]
+            counters[3] += 1
             continue
         rr, ex, ex_open, ex_off, er = _log(R, rlen, ropen, f, xlist[i], n_xs[i], par[i], wts[i],
                                            lg_par, lg_wts, lg_nx, f - n0, rr, rr_off, ex,

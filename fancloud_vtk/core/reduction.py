@@ -113,8 +113,17 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
     (500, 2000)
     """
     fc = as_fan_cloud(fancloud)
+    target = MIN_POINTS if n_points is None else target_count(fc.n_points, n_points, None)
+    return _run(fc, target, n_points is not None, weights, method, colors, exact, progress,
+                logs=True)
+
+
+def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact, progress,
+         logs: bool):
+    """The reduction of ``fc`` to ``target`` points: its :class:`Hierarchy` (``logs``), or
+    without logs (nothing recorded but the result) the reduced fan cloud itself, which is
+    the same as the hierarchy's coarsest level."""
     n = fc.n_points
-    target = MIN_POINTS if n_points is None else target_count(n, n_points, None)
     if method not in METHODS:
         raise ValueError(f"method must be 'entropy' or 'error', got {method!r}")
     w = check_weights(weights)
@@ -144,16 +153,18 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
     dist, curv, cc, colt, key, heap, hpos = RK.init_state(pts, nrm, col, R, rlen, np.array(w),
                                                           dbar, METHODS[method])
     n_remove = n - target
+    # the logs (np.empty: pages that a reduction without logs never writes cost nothing)
+    n_log = n_remove
     order = np.empty(n_remove, np.int64)
-    detail = np.empty((n_remove, 6))
-    rem_off = np.zeros(n_remove + 1, np.int64)
-    rem_ring = np.empty(8 * n_remove + 16, np.int32)
-    rem_open = np.zeros(n_remove, bool)
-    log_off = np.zeros(n_remove + 1, np.int64)
-    ent_x = np.empty(8 * n_remove + 16, np.int32)
-    ent_open = np.empty(8 * n_remove + 16, bool)
-    ent_off = np.zeros(8 * n_remove + 17, np.int64)
-    ent_ring = np.empty(48 * n_remove + 64, np.int32)
+    detail = np.empty((n_log, 6))
+    rem_off = np.zeros(n_log + 1, np.int64)
+    rem_ring = np.empty(8 * n_log + 16, np.int32)
+    rem_open = np.zeros(n_log, bool)
+    log_off = np.zeros(n_log + 1, np.int64)
+    ent_x = np.empty(8 * n_log + 16, np.int32)
+    ent_open = np.empty(8 * n_log + 16, bool)
+    ent_off = np.zeros(8 * n_log + 17, np.int64)
+    ent_ring = np.empty(48 * n_log + 64, np.int32)
     stamp = np.zeros(n, np.int64)
     counters = np.array([n, 0, 0, 0, 0, 0], np.int64)
     wa = np.array(w)
@@ -170,14 +181,14 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
             if counters[1] == before:
                 break  # every remaining point is blocked
     else:
-        logs = _Logs(rem_ring, ent_x, ent_open, ent_off, ent_ring)
+        log = _Logs(rem_ring, ent_x, ent_open, ent_off, ent_ring)
         _rounds(pts, nrm, col, wa, dbar, METHODS[method], R, rlen, ropen, active, IN, nin, over,
                 dist, curv, cc, colt, key, counters, n_remove, order, detail, rem_off, rem_open,
-                log_off, logs, stamp, progress)
-        rem_ring, ent_x, ent_open, ent_off, ent_ring = (logs.rem_ring, logs.ent_x, logs.ent_open,
-                                                        logs.ent_off, logs.ent_ring)
+                log_off, log, stamp, progress, logs)
+        rem_ring, ent_x, ent_open, ent_off, ent_ring = (log.rem_ring, log.ent_x, log.ent_open,
+                                                        log.ent_off, log.ent_ring)
     r = int(counters[1])
-    if n_points is not None and r < n_remove:
+    if strict and r < n_remove:
         raise FanCloudInputError(
             f"the reduction stopped at {n - r} points: no remaining point can be removed "
             f"without breaking a fan (asked for {target})"
@@ -186,6 +197,11 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
     coarse_off, coarse_ring = RK.csr_from_table(R, rlen, active, perm)
     coarse_open = np.zeros(n, bool)
     coarse_open[perm] = ropen
+    if not logs:
+        kept = np.zeros(n, bool)
+        kept[perm] = active
+        _report(progress, 1.0, "reduction: done")
+        return _coarse_level(fc, coarse_off, coarse_ring, coarse_open, kept)
     n_ent = int(counters[2])
     h = Hierarchy(
         source=fc,
@@ -207,6 +223,33 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
     )
     _report(progress, 1.0, "reduction: done")
     return h
+
+
+def _coarse_level(fc: FanCloud, coarse_off, coarse_ring, coarse_open, kept) -> FanCloud:
+    """The reduced fan cloud from the coarsest level's rings (input indices) and kept mask:
+    what ``Hierarchy.level(n_min)`` gives, without a hierarchy."""
+    pdata = dict(fc.point_data)
+    original = pdata.pop(ORIGINAL_ID, None)
+    if original is None:
+        original = np.arange(fc.n_points, dtype=np.int64)
+    width = max(int(np.diff(coarse_off).max(initial=0)), 1)
+    none = np.zeros(0, np.int64)
+    R, rlen = RK.table_from_csr(coarse_off, coarse_ring, none, none, width)
+    return _level_cloud(fc.points, fc.normals, R, rlen, coarse_open, kept, pdata,
+                        np.asarray(original, np.int64), fc.rotated)
+
+
+def _level_cloud(pts, nrm, R, rlen, ropen, active, point_data, original_id, rotated) -> FanCloud:
+    """The fan cloud of the active points of a fan table (a level), with their point arrays
+    and ``original_id``."""
+    ids, offsets, ring, ok = RK.compact_level(R, rlen, active)
+    if not ok:
+        raise RuntimeError("internal error: a fan of the level refers to a removed point")
+    pdata = {k: v[ids].copy() for k, v in point_data.items()}
+    pdata[ORIGINAL_ID] = original_id[ids].copy()
+    return FanCloud(np.ascontiguousarray(pts[ids]), offsets, ring,
+                    np.ascontiguousarray(nrm[ids]), ropen[ids].copy(), rotated[ids].copy(),
+                    pdata, {"hierarchy_level": len(ids)})
 
 
 #: a round of the reduction looks at this fraction of the points left (lowest keys first)
@@ -238,9 +281,11 @@ class _Logs:
 
 def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, over, dist, curv,
             cc, colt, key, counters, n_remove, order, detail, rem_off, rem_open, log_off, logs,
-            stamp, progress):
+            stamp, progress, write_logs=True):
     """The reduction in rounds (see ``_reduction_kernels``): each round accepts, lowest key
-    first, the candidates whose neighbourhoods do not overlap, and removes them together."""
+    first, the candidates whose neighbourhoods do not overlap, and removes them together.
+    ``write_logs`` False: the rounds record nothing (the rare one-at-a-time fallback still
+    writes its logs, which are then not used)."""
     import numba
 
     n = len(pts)
@@ -259,22 +304,27 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
         if len(acc) == 0:
             # only points with overflowing in-lists left: one at a time
             heap, hpos = RK.heap_of(key, active)
-            RK.reduce_steps(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin,
-                            over, dist, curv, cc, colt, key, heap, hpos, counters, 1,
-                            n - n_remove, order, detail, rem_off, logs.rem_ring, rem_open,
-                            log_off, logs.ent_x, logs.ent_open, logs.ent_off, logs.ent_ring,
-                            stamp)
+            grown = RK.reduce_steps(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN,
+                                    nin, over, dist, curv, cc, colt, key, heap, hpos, counters,
+                                    1, n - n_remove, order, detail, rem_off, logs.rem_ring,
+                                    rem_open, log_off, logs.ent_x, logs.ent_open, logs.ent_off,
+                                    logs.ent_ring, stamp)
+            # the log arrays it may have grown
+            logs.rem_ring, logs.ent_x, logs.ent_open, logs.ent_off, logs.ent_ring = grown
             continue
         aff = nin[acc].astype(np.int64)
         buf_off = np.zeros(len(acc) + 1, np.int64)
         np.cumsum(aff, out=buf_off[1:])
-        logs.reserve(counters, len(acc) * width, int(buf_off[-1]), int(buf_off[-1]) * width)
+        if write_logs:
+            logs.reserve(counters, len(acc) * width, int(buf_off[-1]),
+                         int(buf_off[-1]) * width)
         buf, buf_len, buf_open, ok, frames = RK.reform_batch(pts, nrm, R, rlen, ropen, IN, nin,
                                                              acc, buf_off, stamps, tags)
         changed = RK.commit_batch(
             R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len, buf_open, ok,
             frames, n_remove - counters[1], counters, order, detail, rem_off, logs.rem_ring,
-            rem_open, log_off, logs.ent_x, logs.ent_open, logs.ent_off, logs.ent_ring, stamp)
+            rem_open, log_off, logs.ent_x, logs.ent_open, logs.ent_off, logs.ent_ring, stamp,
+            write_logs)
         RK.update_terms(pts, nrm, col, R, rlen, dist, curv, colt, dbar, changed)
         RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, w, method, dbar, changed,
                        with_cc)
@@ -344,10 +394,11 @@ def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, metho
     """
     fc = as_fan_cloud(fancloud)
     target = target_count(fc.n_points, n_points, keep)
-    h = hierarchy(fc, target, weights=weights, method=method, colors=colors, exact=exact,
-                  progress=progress)
-    out = h.level(target)
-    return (out, h) if return_hierarchy else out
+    if not return_hierarchy:
+        # nothing recorded but the result (the hierarchy's coarsest level)
+        return _run(fc, target, True, weights, method, colors, exact, progress, logs=False)
+    h = _run(fc, target, True, weights, method, colors, exact, progress, logs=True)
+    return h.level(target), h
 
 
 def laplacian_smooth(fancloud: FanCloud, iterations: int = 1, factor: float = 0.5) -> FanCloud:
@@ -604,15 +655,8 @@ class Hierarchy:
         return RK.measure_detail(pts, nrm, self.order, self.rem_off, self.rem_ring)
 
     def _fan_cloud(self, pts, nrm, R, rlen, ropen, active) -> FanCloud:
-        ids, offsets, ring, ok = RK.compact_level(R, rlen, active)
-        if not ok:
-            raise RuntimeError("internal error: a fan of the level refers to a removed point")
-        pdata = {k: v[ids].copy() for k, v in self.source.point_data.items()}
-        pdata[ORIGINAL_ID] = self.original_id[ids].copy()
-        return FanCloud(np.ascontiguousarray(pts[ids]), offsets, ring,
-                        np.ascontiguousarray(nrm[ids]), ropen[ids].copy(),
-                        self.source.rotated[ids].copy(), pdata,
-                        {"hierarchy_level": len(ids)})
+        return _level_cloud(pts, nrm, R, rlen, ropen, active, self.source.point_data,
+                            self.original_id, self.source.rotated)
 
     def selective(self, region, base=None, start=None, *, k: int = 6) -> FanCloud:
         """Refine only a region of interest (paper section 6, Figure 11).

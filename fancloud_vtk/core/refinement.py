@@ -90,8 +90,9 @@ class _Log:
         self.rr, self.ex, self.ex_open, self.ex_off, self.er = arrays
 
 
-def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress):
-    """Run the insertions; returns the arrays of the refined cloud and the log."""
+def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, rings=True):
+    """Run the insertions; returns the arrays of the refined cloud and the log (with the
+    rings a hierarchy needs if ``rings``; the exact mode always logs them)."""
     n0 = fc.n_points
     m = target - n0
     round_cap = 0 if exact else min(MAX_ROUND, max(64, m))
@@ -166,7 +167,7 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress):
             FK.commit_batch(pts, nrm, col, R, rlen, ropen, target, final, ring_r, ring_h, xlist,
                             xrings, xlen, xopen, n_xs)
             log.set(FK.log_batch(R, rlen, ropen, final, xlist, n_xs, par, wts, log.par, log.wts,
-                                 log.nx_per, n0, *log.arrays_in(), log.counters))
+                                 log.nx_per, n0, *log.arrays_in(), log.counters, rings))
             n_cur += int(ok.sum())
             tag += 1
             changed = FK.changed_of(final, xlist, n_xs, stamp, tag)
@@ -333,9 +334,9 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     if not dbar > 0:
         raise FanCloudInputError("the fans have no neighbours at a distance > 0: nothing to refine")
     _report(progress, 0.0, "refinement: setting up")
-    work, changed = _delaunay(fc)
+    work = _delaunay(fc)
     pts, nrm, R, rlen, ropen, log = _insert(work, target, w, rgb, dbar, bool(move), bool(exact),
-                                            progress)
+                                            progress, rings=bool(return_hierarchy))
     m = target - n0
     ids, offsets, ring, ok = RK.compact_level(R, rlen, np.ones(target, bool))
     if not ok:
@@ -351,13 +352,13 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     _report(progress, 1.0, "refinement: done")
     if not return_hierarchy:
         return out
-    return out, _hierarchy(fc, work, changed, out, log, w)
+    return out, _hierarchy(fc, work, _changed_rings(fc, work), out, log, w)
 
 
-def _delaunay(fc: FanCloud):
-    """The fan cloud with every fan replaced by its local Delaunay ring (as the mesh does), and
-    the points whose rings that changed: an inserted point must split one triangle of the
-    fans around it, so they must agree (docs/refinement.md)."""
+def _delaunay(fc: FanCloud) -> FanCloud:
+    """The fan cloud with every fan replaced by its local Delaunay ring (as the mesh does): an
+    inserted point must split one triangle of the fans around it, so they must agree
+    (docs/refinement.md)."""
     import numba
 
     from . import _mesh_kernels as MK
@@ -366,7 +367,12 @@ def _delaunay(fc: FanCloud):
     counts, table = MK.delaunay_rings(fc.points, fc.normals, fc.offsets, fc.ring, fc.open, width,
                                       2 * numba.get_num_threads())
     offsets, ring = MK.compact_rings(counts, table)
-    work = FanCloud(fc.points, offsets, ring, fc.normals, fc.open, fc.rotated, fc.point_data)
+    return FanCloud(fc.points, offsets, ring, fc.normals, fc.open, fc.rotated, fc.point_data)
+
+
+def _changed_rings(fc: FanCloud, work: FanCloud) -> np.ndarray:
+    """The points whose rings :func:`_delaunay` changed."""
+    offsets, ring = work.offsets, work.ring
     sizes = np.diff(offsets)
     same = sizes == fc.fan_sizes
     # compare the rings entry by entry where the sizes agree
@@ -375,7 +381,7 @@ def _delaunay(fc: FanCloud):
     old_own = np.repeat(same, fc.fan_sizes)
     diff = ring[own] != fc.ring[old_own]
     same[np.unique(owner[diff])] = False
-    return work, np.flatnonzero(~same)
+    return np.flatnonzero(~same)
 
 
 def _hierarchy(fc: FanCloud, work: FanCloud, changed, out: FanCloud, log: _Log, w) -> Hierarchy:
