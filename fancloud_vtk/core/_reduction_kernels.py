@@ -311,15 +311,22 @@ def _set_ring(R, rlen, IN, nin, over, x, ring, k):
     rlen[x] = k
 
 
-@njit(cache=True)
-def build_in_lists(R, rlen, width):
+@njit(cache=True, parallel=True)
+def build_in_lists(R, rlen, width, n_chunks):
+    """Every point's in-list, in increasing order of the fans' points: each of ``n_chunks``
+    parts (about one per thread) reads all fans and fills the lists of its range of points."""
     n = R.shape[0]
     IN = np.empty((n, width), np.int32)
     nin = np.zeros(n, np.int32)
     over = np.zeros(n, np.bool_)
-    for x in range(n):
-        for a in range(rlen[x]):
-            _in_add(IN, nin, over, R[x, a], x)
+    for ch in prange(n_chunks):
+        lo = n * ch // n_chunks
+        hi = n * (ch + 1) // n_chunks
+        for x in range(n):
+            for a in range(rlen[x]):
+                y = R[x, a]
+                if lo <= y < hi:
+                    _in_add(IN, nin, over, y, x)
     return IN, nin, over
 
 
@@ -342,28 +349,23 @@ def _key(points, normals, R, rlen, dist, curv, cc, col, w, method, x):
     return w[0] * dist[x] + w[1] * curv[x] + w[2] * cc[x] + w[3] * col[x]
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def init_state(points, normals, colors, R, rlen, w, dbar, method):
-    """Terms, keys and the heap of every point: (dist, curv, cc, col, key, heap, hpos)."""
+    """Terms and keys of every point: (dist, curv, cc, col, key) (the heap: :func:`heap_of`)."""
     n = points.shape[0]
     dist = np.zeros(n)
     curv = np.zeros(n)
     cc = np.zeros(n)
     col = np.zeros(n)
-    for x in range(n):
+    for x in prange(n):
         dist[x], curv[x], col[x] = point_terms(points, normals, colors, x, R[x], rlen[x], dbar)
-    for x in range(n):
-        cc[x] = point_cc(points, curv, x, R[x], rlen[x], dbar)
     key = np.empty(n)
-    for x in range(n):
+    for x in prange(n):
+        cc[x] = point_cc(points, curv, x, R[x], rlen[x], dbar)
         key[x] = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, x)
         if rlen[x] == 0:
             key[x] = INF  # an isolated point has no fan to re-form: it stays
-    heap = np.arange(n).astype(np.int64)
-    hpos = np.arange(n).astype(np.int64)
-    for i in range(n // 2 - 1, -1, -1):
-        _sift_down(heap, hpos, key, i, n)
-    return dist, curv, cc, col, key, heap, hpos
+    return dist, curv, cc, col, key
 
 
 @njit(cache=True)
@@ -670,14 +672,17 @@ def accept_batch(cands, R, rlen, IN, nin, over, mark, tag):
 
 
 @njit(cache=True, parallel=True)
-def reform_batch(points, normals, R, rlen, ropen, IN, nin, acc, buf_off, stamps, tags):
+def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, buf_off, stamps,
+                 tags, with_frames):
     """Phase A: the new fans of every point whose fan contains an accepted point.
 
-    Returns (buf, buf_len, buf_open, ok, frames): buf[buf_off[i] + j] the new
-    ring of IN[acc[i], j]; ok[i] False if some fan cannot be re-formed;
-    frames[i] the detail of acc[i] (offset and normal in its ring's frame).
-    ``stamps``: (chunks, n) scratch, one row per parallel chunk, with its
-    last tag in ``tags``.
+    Returns (buf, buf_len, buf_open, buf_terms, ok, frames): buf[buf_off[i] +
+    j] the new ring of IN[acc[i], j] and buf_terms[...] the entropy terms
+    (dist, curv, col) of that fan (they depend on its ring only, and a fan
+    changes at most once a round); ok[i] False if some fan cannot be
+    re-formed; frames[i] the detail of acc[i] (offset and normal in its
+    ring's frame; only ``with_frames``). ``stamps``: (chunks, n) scratch,
+    one row per parallel chunk, with its last tag in ``tags``.
     """
     n_acc = acc.shape[0]
     width = R.shape[1]
@@ -685,8 +690,9 @@ def reform_batch(points, normals, R, rlen, ropen, IN, nin, acc, buf_off, stamps,
     buf = np.empty((total, width), np.int32)
     buf_len = np.empty(total, np.int64)
     buf_open = np.empty(total, np.bool_)
+    buf_terms = np.empty((total, 3))
     ok = np.ones(n_acc, np.bool_)
-    frames = np.empty((n_acc, 6))
+    frames = np.empty((n_acc if with_frames else 0, 6))
     n_chunks = stamps.shape[0]
     for ch in prange(n_chunks):
         cand, xs, ys, ordr, hull = fan_scratch(width)
@@ -702,8 +708,13 @@ def reform_batch(points, normals, R, rlen, ropen, IN, nin, acc, buf_off, stamps,
                 if h < 0:
                     ok[i] = False
                     break
-                buf_len[buf_off[i] + j] = h
-                buf_open[buf_off[i] + j] = op
+                b = buf_off[i] + j
+                buf_len[b] = h
+                buf_open[b] = op
+                buf_terms[b, 0], buf_terms[b, 1], buf_terms[b, 2] = point_terms(
+                    points, normals, colors, x, buf[b], h, dbar)
+            if not with_frames:
+                continue
             k = rlen[p]
             fr = local_frame(points, R[p], k, normals[p, 0], normals[p, 1], normals[p, 2])
             d = _to_frame(fr, points[p, 0] - fr[0], points[p, 1] - fr[1], points[p, 2] - fr[2])
@@ -712,7 +723,7 @@ def reform_batch(points, normals, R, rlen, ropen, IN, nin, acc, buf_off, stamps,
                 frames[i, c] = d[c]
                 frames[i, 3 + c] = e[c]
         tags[ch] = tag
-    return buf, buf_len, buf_open, ok, frames
+    return buf, buf_len, buf_open, buf_terms, ok, frames
 
 
 @njit(cache=True)
@@ -782,8 +793,9 @@ def _write_logs(R, rlen, ropen, IN, nin, acc, frames, idx, rem_at, ent_at, ring_
 
 @njit(cache=True, parallel=True)
 def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
-           buf_open, stamp, tag, n_chunks):
-    """Make the removals ``acc[idx]``: fans re-formed, in-lists kept; the changed fans, once.
+           buf_open, buf_terms, dist, curv, col, stamp, tag, n_chunks):
+    """Make the removals ``acc[idx]``: fans re-formed (with their entropy terms), in-lists
+    kept; the changed fans, once.
 
     The same result as making them one after the other, in two parallel
     passes. The accepted points' neighbourhoods (p, its ring, its in-list)
@@ -834,6 +846,9 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
                 R[x, c] = buf[b, c]
             rlen[x] = k
             ropen[x] = buf_open[b]
+            dist[x] = buf_terms[b, 0]
+            curv[x] = buf_terms[b, 1]
+            col[x] = buf_terms[b, 2]
         ev_n[j] = e - ev_off[j]
     n = nin.shape[0]
     for ch in prange(n_chunks):
@@ -862,13 +877,15 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
 
 
 def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len,
-                 buf_open, ok, frames, limit, counters, order, detail, rem_off, rem_ring,
-                 rem_open, log_off, ent_x, ent_open, ent_off, ent_ring, stamp, write_logs=True):
+                 buf_open, buf_terms, dist, curv, col, ok, frames, limit, counters, order,
+                 detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off,
+                 ent_ring, stamp, write_logs=True):
     """Phase B: log (in parallel) and apply (in index order) the removals a round makes.
 
     A point whose fans cannot all be re-formed stays, its key set to inf.
-    Returns the fans whose rings changed (each once). ``write_logs`` False:
-    nothing is logged (and the log counters stay).
+    The changed fans get their new entropy terms (``buf_terms``). Returns
+    them (each once). ``write_logs`` False: nothing is logged (and the log
+    counters stay; ``frames`` may be empty).
     """
     idx, rem_at, ent_at, ring_at = _plan_commit(rlen, IN, nin, key, acc, ok, limit, counters)
     m = len(idx)
@@ -883,14 +900,8 @@ def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, 
     counters[0] -= m
     counters[5] += 1
     return _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
-                  buf_open, stamp, counters[5], get_num_threads() if m > 64 else 1)
-
-
-@njit(cache=True, parallel=True)
-def update_terms(points, normals, colors, R, rlen, dist, curv, col, dbar, changed):
-    for i in prange(changed.shape[0]):
-        x = changed[i]
-        dist[x], curv[x], col[x] = point_terms(points, normals, colors, x, R[x], rlen[x], dbar)
+                  buf_open, buf_terms, dist, curv, col, stamp, counters[5],
+                  get_num_threads() if m > 64 else 1)
 
 
 @njit(cache=True, parallel=True)

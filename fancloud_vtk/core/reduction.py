@@ -137,6 +137,8 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     if not dbar > 0:
         raise FanCloudInputError("the fans have no neighbours at a distance > 0: nothing to reduce")
     _report(progress, 0.0, "reduction: setting up")
+    import numba
+
     # work in a spatially coherent order (the fan grid's cells in Morton order)
     from .fans import _Grid
 
@@ -149,9 +151,9 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     R, rlen = RK.table_from_csr(fc.offsets, fc.ring, perm, rank, width)
     ropen = np.ascontiguousarray(fc.open[perm])
     active = np.ones(n, bool)
-    IN, nin, over = RK.build_in_lists(R, rlen, IN_WIDTH)
-    dist, curv, cc, colt, key, heap, hpos = RK.init_state(pts, nrm, col, R, rlen, np.array(w),
-                                                          dbar, METHODS[method])
+    IN, nin, over = RK.build_in_lists(R, rlen, IN_WIDTH, numba.get_num_threads())
+    dist, curv, cc, colt, key = RK.init_state(pts, nrm, col, R, rlen, np.array(w), dbar,
+                                              METHODS[method])
     n_remove = n - target
     # the logs (np.empty: pages that a reduction without logs never writes cost nothing)
     n_log = n_remove
@@ -169,6 +171,7 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     counters = np.array([n, 0, 0, 0, 0, 0], np.int64)
     wa = np.array(w)
     if exact:
+        heap, hpos = RK.heap_of(key, active)
         chunk = max(1000, n_remove // 50)
         while counters[1] < n_remove:
             before = counters[1]
@@ -318,14 +321,14 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
         if write_logs:
             logs.reserve(counters, len(acc) * width, int(buf_off[-1]),
                          int(buf_off[-1]) * width)
-        buf, buf_len, buf_open, ok, frames = RK.reform_batch(pts, nrm, R, rlen, ropen, IN, nin,
-                                                             acc, buf_off, stamps, tags)
-        changed = RK.commit_batch(
-            R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len, buf_open, ok,
-            frames, n_remove - counters[1], counters, order, detail, rem_off, logs.rem_ring,
-            rem_open, log_off, logs.ent_x, logs.ent_open, logs.ent_off, logs.ent_ring, stamp,
+        buf, buf_len, buf_open, buf_terms, ok, frames = RK.reform_batch(
+            pts, nrm, col, dbar, R, rlen, ropen, IN, nin, acc, buf_off, stamps, tags,
             write_logs)
-        RK.update_terms(pts, nrm, col, R, rlen, dist, curv, colt, dbar, changed)
+        changed = RK.commit_batch(
+            R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len, buf_open,
+            buf_terms, dist, curv, colt, ok, frames, n_remove - counters[1], counters, order,
+            detail, rem_off, logs.rem_ring, rem_open, log_off, logs.ent_x, logs.ent_open,
+            logs.ent_off, logs.ent_ring, stamp, write_logs)
         RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, w, method, dbar, changed,
                        with_cc)
         _report(progress, counters[1] / max(n_remove, 1), "reduction")
