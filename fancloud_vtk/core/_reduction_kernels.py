@@ -986,6 +986,37 @@ def csr_from_table(R, rlen, active, order):
     return offsets, ring
 
 
+@njit(cache=True, parallel=True)
+def kept_level(R, rlen, active, order, rank):
+    """The kept points of a table in work order (row i is input point ``order[i]``, and
+    ``rank`` its inverse) as :func:`compact_level` gives them from the table in input order:
+    (ids, offsets, ring), the kept input points in order and their rings renumbered among
+    them."""
+    n = R.shape[0]
+    new = np.full(n, -1, np.int64)  # per input point: its number among the kept
+    m = 0
+    for p in range(n):
+        if active[rank[p]]:
+            new[p] = m
+            m += 1
+    ids = np.empty(m, np.int64)
+    sizes = np.empty(m + 1, np.int64)
+    sizes[0] = 0
+    for p in prange(n):
+        j = new[p]
+        if j >= 0:
+            ids[j] = p
+            sizes[j + 1] = rlen[rank[p]]
+    offsets = np.cumsum(sizes)
+    ring = np.empty(offsets[m], np.int64)
+    for j in prange(m):
+        i = rank[ids[j]]
+        at = offsets[j]
+        for a in range(rlen[i]):
+            ring[at + a] = new[order[R[i, a]]]
+    return ids, offsets, ring
+
+
 @njit(cache=True)
 def compact_level(R, rlen, active):
     """The active points, and their rings as CSR renamed to positions among them.

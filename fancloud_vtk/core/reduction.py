@@ -196,15 +196,17 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
             f"the reduction stopped at {n - r} points: no remaining point can be removed "
             f"without breaking a fan (asked for {target})"
         )
-    # the coarsest level's fans, and everything renamed back to the input's indices
-    coarse_off, coarse_ring = RK.csr_from_table(R, rlen, active, perm)
     coarse_open = np.zeros(n, bool)
     coarse_open[perm] = ropen
     if not logs:
-        kept = np.zeros(n, bool)
-        kept[perm] = active
+        # the coarsest level straight from the table: what Hierarchy.level(target) gives
+        ids, offsets, ring = RK.kept_level(R, rlen, active, perm, rank)
         _report(progress, 1.0, "reduction: done")
-        return _coarse_level(fc, coarse_off, coarse_ring, coarse_open, kept)
+        pdata, original = _source_arrays(fc)
+        return _level_of(fc.points, fc.normals, pdata, original, fc.rotated, ids, offsets, ring,
+                         coarse_open)
+    # the coarsest level's fans, and everything renamed back to the input's indices
+    coarse_off, coarse_ring = RK.csr_from_table(R, rlen, active, perm)
     n_ent = int(counters[2])
     h = Hierarchy(
         source=fc,
@@ -228,31 +230,27 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     return h
 
 
-def _coarse_level(fc: FanCloud, coarse_off, coarse_ring, coarse_open, kept) -> FanCloud:
-    """The reduced fan cloud from the coarsest level's rings (input indices) and kept mask:
-    what ``Hierarchy.level(n_min)`` gives, without a hierarchy."""
-    pdata = dict(fc.point_data)
-    original = pdata.pop(ORIGINAL_ID, None)
-    if original is None:
-        original = np.arange(fc.n_points, dtype=np.int64)
-    width = max(int(np.diff(coarse_off).max(initial=0)), 1)
-    none = np.zeros(0, np.int64)
-    R, rlen = RK.table_from_csr(coarse_off, coarse_ring, none, none, width)
-    return _level_cloud(fc.points, fc.normals, R, rlen, coarse_open, kept, pdata,
-                        np.asarray(original, np.int64), fc.rotated)
-
-
-def _level_cloud(pts, nrm, R, rlen, ropen, active, point_data, original_id, rotated) -> FanCloud:
-    """The fan cloud of the active points of a fan table (a level), with their point arrays
-    and ``original_id``."""
-    ids, offsets, ring, ok = RK.compact_level(R, rlen, active)
-    if not ok:
+def _level_of(pts, nrm, point_data, original_id, rotated, ids, offsets, ring, ropen
+              ) -> FanCloud:
+    """The fan cloud of the points ``ids`` with the rings ``offsets``, ``ring`` (numbered
+    among them), their point arrays and ``original_id``; the other arrays are per point of
+    the whole cloud."""
+    if len(ring) and ring.min() < 0:
         raise RuntimeError("internal error: a fan of the level refers to a removed point")
     pdata = {k: v[ids].copy() for k, v in point_data.items()}
     pdata[ORIGINAL_ID] = original_id[ids].copy()
     return FanCloud(np.ascontiguousarray(pts[ids]), offsets, ring,
                     np.ascontiguousarray(nrm[ids]), ropen[ids].copy(), rotated[ids].copy(),
                     pdata, {"hierarchy_level": len(ids)})
+
+
+def _source_arrays(fc: FanCloud):
+    """(point arrays without ``original_id``, ``original_id``: the input's own or 0..n-1)."""
+    pdata = dict(fc.point_data)
+    original = pdata.pop(ORIGINAL_ID, None)
+    if original is None:
+        original = np.arange(fc.n_points, dtype=np.int64)
+    return pdata, np.asarray(original, dtype=np.int64)
 
 
 #: a round of the reduction looks at this fraction of the points left (lowest keys first)
@@ -465,14 +463,10 @@ class Hierarchy:
     def __init__(self, *, source: FanCloud, order, rem_off, rem_ring, rem_open, detail, log_off,
                  ent_x, ent_open, ent_off, ent_ring, coarse_off, coarse_ring, coarse_open,
                  weights, method):
-        pdata = dict(source.point_data)
-        original = pdata.pop(ORIGINAL_ID, None)
-        n = source.n_points
-        if original is None:
-            original = np.arange(n, dtype=np.int64)
+        pdata, original = _source_arrays(source)
         self.source = FanCloud(source.points, source.offsets, source.ring, source.normals,
                                source.open, source.rotated, pdata)
-        self.original_id = np.asarray(original, dtype=np.int64)
+        self.original_id = original
         self.order = np.asarray(order, np.int64)
         self.rem_off = np.asarray(rem_off, np.int64)
         self.rem_ring = _indices(rem_ring)
@@ -658,8 +652,11 @@ class Hierarchy:
         return RK.measure_detail(pts, nrm, self.order, self.rem_off, self.rem_ring)
 
     def _fan_cloud(self, pts, nrm, R, rlen, ropen, active) -> FanCloud:
-        return _level_cloud(pts, nrm, R, rlen, ropen, active, self.source.point_data,
-                            self.original_id, self.source.rotated)
+        ids, offsets, ring, ok = RK.compact_level(R, rlen, active)
+        if not ok:
+            raise RuntimeError("internal error: a fan of the level refers to a removed point")
+        return _level_of(pts, nrm, self.source.point_data, self.original_id,
+                         self.source.rotated, ids, offsets, ring, ropen)
 
     def selective(self, region, base=None, start=None, *, k: int = 6) -> FanCloud:
         """Refine only a region of interest (paper section 6, Figure 11).
