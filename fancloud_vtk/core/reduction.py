@@ -4,8 +4,9 @@
 that contained it are re-formed from the points that remain (locally, from
 their own ring and the removed point's ring: no neighbour search), the
 entropies of the points around them are recomputed, and a priority queue
-(an indexed binary heap in a numba kernel) gives the next point. Every
-removal is recorded in a :class:`Hierarchy`: the removal order, each removed
+(an indexed binary heap in a numba kernel) gives the next point.
+:func:`hierarchy` (or ``reduce(..., return_hierarchy=True)``) records every
+removal in a :class:`Hierarchy`: the removal order, each removed
 point's ring and its position in the local frame of that ring, and the
 rings its removal changed, so that any level, coarser or finer, can be
 recovered, edited coarse levels refined with their detail, and a region of
