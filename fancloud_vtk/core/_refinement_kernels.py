@@ -215,23 +215,29 @@ def _parents(R, rlen, M, p):
 
 
 @njit(cache=True)
-def _reform_with(points, normals, R, rlen, ropen, x, r, cand, xs, ys, ordr, hull, stamp, tag,
-                 out):
+def _add(cand, m, z, skip):
+    """``cand[:m]`` with z appended unless it is ``skip`` or there already: the new m.
+    (A scan of the few candidates costs less than the cache misses of a stamp array.)"""
+    if z == skip:
+        return m
+    for i in range(m):
+        if cand[i] == z:
+            return m
+    cand[m] = z
+    return m + 1
+
+
+@njit(cache=True)
+def _reform_with(points, normals, R, rlen, ropen, x, r, cand, xs, ys, ordr, hull, out):
     """x's new ring from its ring plus r: the local Delaunay ring in x's tangent plane.
     Returns (size, open); size -1 if no fan can be formed."""
     m = 0
-    stamp[x] = tag
     for a in range(rlen[x]):
-        s = R[x, a]
-        if stamp[s] == tag:
-            continue
-        stamp[s] = tag
-        cand[m] = s
-        m += 1
+        m = _add(cand, m, R[x, a], x)
     cand[m] = r
     m += 1
-    return delaunay_fan(points, normals, ropen[x], x, cand, m, xs, ys, ordr, hull, R.shape[1],
-                        out)
+    return delaunay_fan(points, normals, ropen[x], x, cand, m, xs, ys, ordr, hull,
+                         R.shape[1], out)
 
 
 @njit(cache=True)
@@ -267,16 +273,15 @@ def _splice(R, rlen, ropen, x, r, u, v, out):
 
 
 @njit(cache=True)
-def _plan(points, normals, colors, R, rlen, ropen, M, p, slot, move, gap, cand, xs, ys, ordr,
-          hull, stamp, tag, c, ring_r, xlist, xrings, xlen, xopen, par, wts):
-    """Plan the insertion at p into the scratch row ``slot`` (reads the fans, writes only row
-    ``slot`` of points, normals and colours and the output buffers).
+def _plan(points, normals, colors, R, rlen, ropen, M, p, q1, q2, slot, move, gap, cand, xs, ys,
+          ordr, hull, c, ring_r, xlist, xrings, xlen, xopen, par, wts):
+    """Plan the insertion at p (parents q1, q2: ``_parents``) into the scratch row ``slot``
+    (reads the fans, writes only row ``slot`` of points, normals and colours and the output
+    buffers).
 
-    Returns (h, nx, tag): r's ring size (0: no insertion possible), how many
-    fans are re-formed (``xlist[:nx]`` with rings ``xrings[i, :xlen[i]]``),
-    the last stamp tag used.
+    Returns (h, nx): r's ring size (0: no insertion possible) and how many
+    fans are re-formed (``xlist[:nx]`` with rings ``xrings[i, :xlen[i]]``).
     """
-    q1, q2 = _parents(R, rlen, M, p)
     par[0] = p
     par[1] = q1
     par[2] = q2
@@ -317,42 +322,33 @@ def _plan(points, normals, colors, R, rlen, ropen, M, p, slot, move, gap, cand, 
             colors[slot, d] = (wts[0] * colors[p, d] + wts[1] * colors[q1, d]
                                + wts[2] * colors[q2, d])
     # r's ring: the local Delaunay ring among the points of the three fans
-    tag += 1
-    stamp[slot] = tag
     m = 0
     for j in range(3):
         q = par[j]
-        if stamp[q] != tag:
-            stamp[q] = tag
-            cand[m] = q
-            m += 1
+        m = _add(cand, m, q, slot)
         for a in range(rlen[q]):
-            z = R[q, a]
-            if stamp[z] != tag:
-                stamp[z] = tag
-                cand[m] = z
-                m += 1
+            m = _add(cand, m, R[q, a], slot)
     mm = inversions(points, normals, slot, cand, m, xs, ys)
     h = closed_ring(xs, ys, mm, cand, ordr, hull, R.shape[1], ring_r)
     if h < 3:
-        return 0, 0, tag
+        return 0, 0
     inside = False
     for i in range(h):
         if ring_r[i] == p:
             inside = True
     if not inside:
-        return 0, 0, tag  # r is not in p's Delaunay neighbourhood: p's fan is no triangle fan
+        return 0, 0  # r is not in p's Delaunay neighbourhood: p's fan is no triangle fan
     if move:
         t = _move(points, normals, R, rlen, ropen, slot, ring_r, h, par, wts, c)
         if t == INF:
-            return 0, 0, tag
+            return 0, 0
     for i in range(h):
         q = ring_r[i]
         dx = points[q, 0] - points[slot, 0]
         dy = points[q, 1] - points[slot, 1]
         dz = points[q, 2] - points[slot, 2]
         if dx * dx + dy * dy + dz * dz < gap * gap:
-            return 0, 0, tag  # closer than the finest spacing allowed: p is done
+            return 0, 0  # closer than the finest spacing allowed: p is done
     # the fans r enters
     n_x = 0
     for i in range(h):
@@ -361,9 +357,8 @@ def _plan(points, normals, colors, R, rlen, ropen, M, p, slot, move, gap, cand, 
                     xrings[n_x])
         op = False
         if k < 0:
-            tag += 1
             k, op = _reform_with(points, normals, R, rlen, ropen, x, slot, cand, xs, ys, ordr,
-                                 hull, stamp, tag, xrings[n_x])
+                                 hull, xrings[n_x])
         if k < 0:
             continue
         has = False
@@ -379,8 +374,8 @@ def _plan(points, normals, colors, R, rlen, ropen, M, p, slot, move, gap, cand, 
         n_x += 1
     for i in range(n_x):
         if xlist[i] == p:
-            return h, n_x, tag
-    return 0, 0, tag  # p's fan would not change: the same insertion would come again
+            return h, n_x
+    return 0, 0  # p's fan would not change: the same insertion would come again
 
 
 @njit(cache=True)
@@ -467,8 +462,6 @@ def refine_steps(points, normals, colors, R, rlen, ropen, dist, curv, cc, col, M
     width = R.shape[1]
     cand, xs, ys, ordr, hull = fan_scratch(width)
     c = np.empty(width)
-    stamp = np.zeros(n_alloc, np.int64)
-    tag = 0
     ring_r = np.empty(width, np.int32)
     xlist = np.empty(width, np.int64)
     xrings = np.empty((width, width), np.int32)
@@ -492,9 +485,9 @@ def refine_steps(points, normals, colors, R, rlen, ropen, dist, curv, cc, col, M
         if key[p] == INF:
             break
         f = n_cur
-        h, n_x, tag = _plan(points, normals, colors, R, rlen, ropen, M, p, f, move, gap, cand, xs,
-                            ys, ordr, hull, stamp, tag, c, ring_r, xlist, xrings, xlen, xopen,
-                            par, wts)
+        q1, q2 = _parents(R, rlen, M, p)
+        h, n_x = _plan(points, normals, colors, R, rlen, ropen, M, p, q1, q2, f, move, gap, cand,
+                       xs, ys, ordr, hull, c, ring_r, xlist, xrings, xlen, xopen, par, wts)
         if h == 0:
             blocked_out[p] = True
             _heap_update(heap, hpos, key, p, INF, size)
@@ -537,80 +530,117 @@ def refine_steps(points, normals, colors, R, rlen, ropen, dist, curv, cc, col, M
 # committed in parallel.
 
 
-@njit(cache=True)
-def _region(R, rlen, M, p, buf):
-    q1, q2 = _parents(R, rlen, M, p)
-    m = 0
-    for j in range(3):
-        q = p if j == 0 else (q1 if j == 1 else q2)
-        buf[m] = q
-        m += 1
-        for a in range(rlen[q]):
-            buf[m] = R[q, a]
-            m += 1
-    return m
-
-
 @njit(cache=True, parallel=True)
-def round_accept(cands, R, rlen, M, mark, tag, limit):
+def round_accept(cands, R, rlen, M, mark, tag, limit, acc, pq):
     """Highest entropy first, the candidates whose regions meet no accepted one's
-    (at most ``limit``). The regions are gathered in parallel, then chosen in order."""
-    width = R.shape[1]
+    (at most ``limit``), into ``acc`` with their parents (q1, q2) in ``pq``; returns their
+    number. The regions are gathered in parallel (packed, in candidate order), then chosen in
+    order: the serial part reads them in sequence and marks ``mark`` (any integer type) with
+    ``tag``."""
     n_c = cands.shape[0]
-    buf = np.empty((n_c, 3 * width + 3), np.int64)
-    size = np.empty(n_c, np.int64)
+    q = np.empty((n_c, 2), np.int64)
+    off = np.empty(n_c + 1, np.int64)
+    off[0] = 0
     for i in prange(n_c):
-        size[i] = _region(R, rlen, M, cands[i], buf[i])
-    out = np.empty(n_c, np.int64)
+        p = cands[i]
+        q1, q2 = _parents(R, rlen, M, p)
+        q[i, 0] = q1
+        q[i, 1] = q2
+        off[i + 1] = 3 + rlen[p] + rlen[q1] + rlen[q2]
+    for i in range(n_c):
+        off[i + 1] += off[i]
+    reg = np.empty(off[n_c], np.int32)
+    for i in prange(n_c):
+        m = off[i]
+        for j in range(3):
+            x = cands[i] if j == 0 else q[i, j - 1]
+            reg[m] = x
+            m += 1
+            for a in range(rlen[x]):
+                reg[m] = R[x, a]
+                m += 1
     m = 0
     for i in range(n_c):
         if m == limit:
             break
-        k = size[i]
         clash = False
-        for a in range(k):
-            if mark[buf[i, a]] == tag:
+        for a in range(off[i], off[i + 1]):
+            if mark[reg[a]] == tag:
                 clash = True
                 break
         if clash:
             continue
-        for a in range(k):
-            mark[buf[i, a]] = tag
-        out[m] = cands[i]
+        for a in range(off[i], off[i + 1]):
+            mark[reg[a]] = tag
+        acc[m] = cands[i]
+        pq[m, 0] = q[i, 0]
+        pq[m, 1] = q[i, 1]
         m += 1
-    return out[:m]
+    return m
 
 
 @njit(cache=True, parallel=True)
-def plan_batch(points, normals, colors, R, rlen, ropen, M, acc, slot0, move, gap, stamps, tags,
-               ring_r, ring_h, xlist, xrings, xlen, xopen, n_xs, par, wts):
-    """Plan the accepted insertions in parallel, insertion i in scratch row slot0 + i."""
+def plan_batch(points, normals, colors, R, rlen, ropen, M, acc, pq, slot0, move, gap, n_chunks,
+               dist, curv, col, dbar, ring_r, ring_h, xlist, xrings, xlen, xopen, n_xs, par, wts):
+    """Plan the accepted insertions in parallel (in ``n_chunks`` parts), insertion i in
+    scratch row slot0 + i; the entropy terms of the planned fans (r's in row slot0 + i) go to
+    dist, curv, col."""
     n_acc = acc.shape[0]
     width = R.shape[1]
-    n_chunks = stamps.shape[0]
     for ch in prange(n_chunks):
         cand, xs, ys, ordr, hull = fan_scratch(width)
         c = np.empty(width)
-        stamp = stamps[ch]
-        tag = tags[ch]
         for i in range((n_acc * ch) // n_chunks, (n_acc * (ch + 1)) // n_chunks):
-            h, n_x, tag = _plan(points, normals, colors, R, rlen, ropen, M, acc[i], slot0 + i,
-                                move, gap, cand, xs, ys, ordr, hull, stamp, tag, c, ring_r[i],
-                                xlist[i], xrings[i], xlen[i], xopen[i], par[i], wts[i])
+            slot = slot0 + i
+            h, n_x = _plan(points, normals, colors, R, rlen, ropen, M, acc[i], pq[i, 0], pq[i, 1],
+                           slot, move, gap, cand, xs, ys, ordr, hull, c, ring_r[i],
+                           xlist[i], xrings[i], xlen[i], xopen[i], par[i], wts[i])
             ring_h[i] = h
             n_xs[i] = n_x
-        tags[ch] = tag
+            if h == 0:
+                continue
+            # the terms as update_entropy would find them after the commit (row slot is r's)
+            dist[slot], curv[slot], col[slot] = point_terms(points, normals, colors, slot,
+                                                            ring_r[i], h, dbar)
+            for t in range(n_x):
+                x = xlist[i, t]
+                dist[x], curv[x], col[x] = point_terms(points, normals, colors, x, xrings[i, t],
+                                                       xlen[i, t], dbar)
 
 
 @njit(cache=True, parallel=True)
 def commit_batch(points, normals, colors, R, rlen, ropen, slot0, final, ring_r, ring_h, xlist,
-                 xrings, xlen, xopen, n_xs):
-    """Commit the planned insertions with ``final[i] >= 0`` (their regions are disjoint)."""
+                 xrings, xlen, xopen, n_xs, dist, curv, col, M, w, blocked):
+    """Commit the planned insertions with ``final[i] >= 0`` (their regions are disjoint): the
+    fans, the terms of ``plan_batch``, and, when the weight of M_cc is 0, the entropies
+    (else ``update_cc`` follows); the changed points are unblocked."""
+    no_cc = not w[2] > 0.0
     for i in prange(final.shape[0]):
-        if final[i] < 0:
+        f = final[i]
+        if f < 0:
             continue
-        _commit(points, normals, colors, R, rlen, ropen, slot0 + i, final[i], ring_r[i],
-                ring_h[i], xlist[i], n_xs[i], xrings[i], xlen[i], xopen[i])
+        slot = slot0 + i
+        _commit(points, normals, colors, R, rlen, ropen, slot, f, ring_r[i], ring_h[i],
+                xlist[i], n_xs[i], xrings[i], xlen[i], xopen[i])
+        dist[f] = dist[slot]
+        curv[f] = curv[slot]
+        col[f] = col[slot]
+        blocked[f] = False
+        if no_cc:
+            M[f] = w[0] * dist[f] + w[1] * curv[f] + w[3] * col[f]
+        for t in range(n_xs[i]):
+            x = xlist[i, t]
+            blocked[x] = False
+            if no_cc:
+                M[x] = w[0] * dist[x] + w[1] * curv[x] + w[3] * col[x]
+
+
+@njit(cache=True, parallel=True)
+def update_cc(points, R, rlen, dist, curv, cc, col, M, w, dbar, ids):
+    """M_cc and the entropy of the points ``ids`` (their other terms already up to date)."""
+    for i in prange(ids.shape[0]):
+        x = ids[i]
+        _entropy(R, rlen, points, curv, dist, cc, col, M, w, dbar, x)
 
 
 @njit(cache=True)

@@ -188,6 +188,7 @@ def fan_cloud_to_mesh(
             fancloud.open,
             width,
             2 * numba.get_num_threads(),
+            np.zeros(0, np.int64),  # already in the grid's order
         )
         offsets, ring = MK.compact_rings(counts, table)
         fans = FanCloud(

@@ -90,9 +90,11 @@ class _Log:
         self.rr, self.ex, self.ex_open, self.ex_off, self.er = arrays
 
 
-def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, rings=True):
+def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, rings=True,
+            seq=None):
     """Run the insertions; returns the arrays of the refined cloud and the log (with the
-    rings a hierarchy needs if ``rings``; the exact mode always logs them)."""
+    rings a hierarchy needs if ``rings``; the exact mode always logs them). ``seq``: the
+    points in an order to compute their first entropies in (space order is faster)."""
     n0 = fc.n_points
     m = target - n0
     round_cap = 0 if exact else min(MAX_ROUND, max(64, m))
@@ -122,7 +124,7 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, ring
     # the finest spacing allowed: a quarter of the mean spacing the target count would have
     gap = MIN_GAP * dbar * np.sqrt(n0 / target)
     FK.update_entropy(pts, nrm, col, R, rlen, dist, curv, cc, colt, M, wa, dbar,
-                      np.arange(n0, dtype=np.int64))
+                      np.arange(n0, dtype=np.int64) if seq is None else seq)
     blocked = np.zeros(n_alloc, bool)
     log = _Log(m, width)
     n_cur = n0
@@ -142,37 +144,41 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, ring
         import numba
 
         n_chunks = 2 * numba.get_num_threads()
-        stamps = np.zeros((n_chunks, n_alloc), np.int64)
-        tags = np.zeros(n_chunks, np.int64)
-        mark = np.zeros(n_alloc, np.int64)
+        mark = np.zeros(n_alloc, np.uint8)  # round_accept's, with tags 1..255
+        atag = 0
         stamp = np.zeros(n_alloc, np.int64)
         buf = _Buffers(round_cap, width)
+        no_cc = not wa[2] > 0.0
         tag = 0
         while n_cur < target:
             want = max(64, int(n_cur * ROUND_FRACTION))
             cands = FK.round_candidates(M, rlen, ropen, blocked, n_cur, want)
             if len(cands) == 0:
                 break
-            tag += 1
-            acc = FK.round_accept(cands, R, rlen, M, mark, tag,
-                                  min(round_cap, target - n_cur))
-            b = buf.view(len(acc))
-            FK.plan_batch(pts, nrm, col, R, rlen, ropen, M, acc, target, move, gap, stamps, tags,
-                          *b)
+            atag = atag % 255 + 1
+            if atag == 1:
+                mark[:] = 0
+            n_acc = FK.round_accept(cands, R, rlen, M, mark, np.uint8(atag),
+                                    min(round_cap, target - n_cur), buf.acc, buf.pq)
+            acc, pq = buf.acc[:n_acc], buf.pq[:n_acc]
+            b = buf.view(n_acc)
+            FK.plan_batch(pts, nrm, col, R, rlen, ropen, M, acc, pq, target, move, gap, n_chunks,
+                          dist, curv, colt, dbar, *b)
             ok = b[1] > 0
             blocked[acc[~ok]] = True
-            final = np.full(len(acc), -1, np.int64)
-            final[ok] = n_cur + np.arange(int(ok.sum()))
+            n_ok = int(ok.sum())
+            final = np.full(n_acc, -1, np.int64)
+            final[ok] = n_cur + np.arange(n_ok)
             ring_r, ring_h, xlist, xrings, xlen, xopen, n_xs, par, wts = b
             FK.commit_batch(pts, nrm, col, R, rlen, ropen, target, final, ring_r, ring_h, xlist,
-                            xrings, xlen, xopen, n_xs)
+                            xrings, xlen, xopen, n_xs, dist, curv, colt, M, wa, blocked)
             log.set(FK.log_batch(R, rlen, ropen, final, xlist, n_xs, par, wts, log.par, log.wts,
                                  log.nx_per, n0, *log.arrays_in(), log.counters, rings))
-            n_cur += int(ok.sum())
-            tag += 1
-            changed = FK.changed_of(final, xlist, n_xs, stamp, tag)
-            blocked[changed] = False
-            FK.update_entropy(pts, nrm, col, R, rlen, dist, curv, cc, colt, M, wa, dbar, changed)
+            n_cur += n_ok
+            if not no_cc:
+                tag += 1
+                FK.update_cc(pts, R, rlen, dist, curv, cc, colt, M, wa, dbar,
+                             FK.changed_of(final, xlist, n_xs, stamp, tag))
             _report(progress, (n_cur - n0) / max(m, 1), "refinement")
     if n_cur < target:
         raise FanCloudInputError(
@@ -186,6 +192,8 @@ class _Buffers:
     """Per-round scratch of the planned insertions."""
 
     def __init__(self, cap: int, width: int):
+        self.acc = np.empty(cap, np.int64)
+        self.pq = np.empty((cap, 2), np.int64)
         self.ring_r = np.empty((cap, width), np.int32)
         self.ring_h = np.empty(cap, np.int64)
         self.xlist = np.empty((cap, width), np.int64)
@@ -334,9 +342,12 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     if not dbar > 0:
         raise FanCloudInputError("the fans have no neighbours at a distance > 0: nothing to refine")
     _report(progress, 0.0, "refinement: setting up")
-    work = _delaunay(fc)
+    from .fans import _Grid
+
+    seq = _Grid(fc.points).order  # a spatial order to work in (the fan grid's)
+    work = _delaunay(fc, seq)
     pts, nrm, R, rlen, ropen, log = _insert(work, target, w, rgb, dbar, bool(move), bool(exact),
-                                            progress, rings=bool(return_hierarchy))
+                                            progress, rings=bool(return_hierarchy), seq=seq)
     m = target - n0
     ids, offsets, ring, ok = RK.compact_level(R, rlen, np.ones(target, bool))
     if not ok:
@@ -355,17 +366,17 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     return out, _hierarchy(fc, work, _changed_rings(fc, work), out, log, w)
 
 
-def _delaunay(fc: FanCloud) -> FanCloud:
+def _delaunay(fc: FanCloud, seq) -> FanCloud:
     """The fan cloud with every fan replaced by its local Delaunay ring (as the mesh does): an
     inserted point must split one triangle of the fans around it, so they must agree
-    (docs/refinement.md)."""
+    (docs/refinement.md). ``seq``: the points in a spatial order (faster; same rings)."""
     import numba
 
     from . import _mesh_kernels as MK
 
     width = max(MIN_WIDTH, int(fc.fan_sizes.max(initial=0)))
     counts, table = MK.delaunay_rings(fc.points, fc.normals, fc.offsets, fc.ring, fc.open, width,
-                                      2 * numba.get_num_threads())
+                                      2 * numba.get_num_threads(), seq)
     offsets, ring = MK.compact_rings(counts, table)
     return FanCloud(fc.points, offsets, ring, fc.normals, fc.open, fc.rotated, fc.point_data)
 
