@@ -296,3 +296,18 @@ def test_overflowing_in_lists_fall_back_to_one_at_a_time(sphere_fans, monkeypatc
     mid = h.level(2000)
     mid.validate()
     assert fingerprint(*_arrays(mid)) == fingerprint(*_arrays(reduce(sphere_fans, 2000)))
+
+
+def test_round_marks_wrap_without_changing_the_result(sphere_fans, monkeypatch):
+    """The rounds' uint8 acceptance marks are cleared when their tags wrap: a cycle of two
+    tags gives the same reduction and refinement as the full one."""
+    from fancloud_vtk import refine
+    from fancloud_vtk.core.reduction import RoundMarks
+
+    small = reduce(sphere_fans, keep=0.2)
+    fine = refine(sphere_fans, factor=1.5)
+    monkeypatch.setattr(RoundMarks, "cycle", 2)
+    assert fingerprint(*_arrays(reduce(sphere_fans, keep=0.2))) == fingerprint(*_arrays(small))
+    again = refine(sphere_fans, factor=1.5)
+    np.testing.assert_array_equal(again.points, fine.points)
+    np.testing.assert_array_equal(again.ring, fine.ring)

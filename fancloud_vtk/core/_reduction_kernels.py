@@ -186,7 +186,20 @@ def _error_cost(points, normals, R, rlen, x):
 
 
 @njit(cache=True)
-def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, stamp, tag, out):
+def _add(cand, m, z, skip):
+    """``cand[:m]`` with z appended unless it is ``skip`` or there already: the new m.
+    (A scan of the few candidates costs less than the cache misses of a stamp array.)"""
+    if z == skip:
+        return m
+    for i in range(m):
+        if cand[i] == z:
+            return m
+    cand[m] = z
+    return m + 1
+
+
+@njit(cache=True)
+def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, out):
     """x's new ring without p, from x's ring and p's: written to ``out``.
 
     The local Delaunay ring in x's tangent plane: the points whose
@@ -196,17 +209,12 @@ def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, st
     formed.
     """
     m = 0
-    stamp[x] = tag
-    stamp[p] = tag
-    for t in range(2):
-        src = x if t == 0 else p
-        for a in range(rlen[src]):
-            s = R[src, a]
-            if stamp[s] == tag:
-                continue
-            stamp[s] = tag
-            cand[m] = s
-            m += 1
+    for a in range(rlen[x]):
+        s = R[x, a]
+        if s != p:
+            m = _add(cand, m, s, x)
+    for a in range(rlen[p]):
+        m = _add(cand, m, R[p, a], x)
     return delaunay_fan(points, normals, ropen[x], x, cand, m, xs, ys, order, hull, R.shape[1],
                         out)
 
@@ -413,9 +421,8 @@ def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, activ
         ok = True
         for i in range(n_aff):
             x = aff[i]
-            counters[5] += 1
             h, op = _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, ordr, hull,
-                            stamp, counters[5], new_rings[i])
+                            new_rings[i])
             if h < 0:
                 ok = False
                 break
@@ -641,39 +648,70 @@ def round_candidates(key, active, want):
 
 
 @njit(cache=True)
-def accept_batch(cands, R, rlen, IN, nin, over, mark, tag):
-    """Lowest key first, the candidates whose neighbourhoods meet no accepted one's."""
-    out = np.empty(cands.shape[0], np.int64)
+def first_disjoint(off, reg, mark, tag, limit, out):
+    """In order, the regions ``reg[off[i]:off[i + 1]]`` (an empty one is never taken) that
+    meet no region taken before, at most ``limit`` of them: their numbers i into ``out``;
+    returns how many. Taken regions are marked with ``tag`` in ``mark`` (uint8: it stays
+    in the cache). The serial part of a round's acceptance: the regions are gathered
+    before, in parallel."""
     m = 0
-    for c in range(cands.shape[0]):
-        p = cands[c]
-        if over[p] or mark[p] == tag:
+    for i in range(off.shape[0] - 1):
+        if m == limit:
+            break
+        lo = off[i]
+        hi = off[i + 1]
+        if lo == hi:
             continue
         clash = False
-        for a in range(rlen[p]):
-            if mark[R[p, a]] == tag:
+        for a in range(lo, hi):
+            if mark[reg[a]] == tag:
                 clash = True
                 break
-        if not clash:
-            for i in range(nin[p]):
-                if mark[IN[p, i]] == tag:
-                    clash = True
-                    break
         if clash:
             continue
-        mark[p] = tag
-        for a in range(rlen[p]):
-            mark[R[p, a]] = tag
-        for i in range(nin[p]):
-            mark[IN[p, i]] = tag
-        out[m] = p
+        for a in range(lo, hi):
+            mark[reg[a]] = tag
+        out[m] = i
         m += 1
-    return np.sort(out[:m])
+    return m
 
 
 @njit(cache=True, parallel=True)
-def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, buf_off, stamps,
-                 tags, with_frames):
+def accept_batch(cands, R, rlen, IN, nin, over, mark, tag):
+    """Lowest key first, the candidates whose neighbourhoods (the point, its ring, the fans
+    that contain it) meet no accepted one's; the points, sorted. ``mark``/``tag``: see
+    :func:`first_disjoint`."""
+    n_c = cands.shape[0]
+    off = np.empty(n_c + 1, np.int64)
+    off[0] = 0
+    for i in prange(n_c):
+        p = cands[i]
+        off[i + 1] = 0 if over[p] else 1 + rlen[p] + nin[p]
+    for i in range(n_c):
+        off[i + 1] += off[i]
+    reg = np.empty(off[n_c], np.int32)
+    for i in prange(n_c):
+        p = cands[i]
+        if over[p]:
+            continue
+        m = off[i]
+        reg[m] = p
+        for a in range(rlen[p]):
+            reg[m + 1 + a] = R[p, a]
+        m += 1 + rlen[p]
+        for t in range(nin[p]):
+            reg[m + t] = IN[p, t]
+    chosen = np.empty(n_c, np.int64)
+    k = first_disjoint(off, reg, mark, tag, n_c, chosen)
+    out = np.empty(k, np.int64)
+    for j in range(k):
+        out[j] = cands[chosen[j]]
+    return np.sort(out)
+
+
+@njit(cache=True, parallel=True)
+def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
+                 with_frames):
     """Phase A: the new fans of every point whose fan contains an accepted point.
 
     Returns (buf, buf_len, buf_open, buf_terms, ok, frames): buf[buf_off[i] +
@@ -681,8 +719,8 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
     (dist, curv, col) of that fan (they depend on its ring only, and a fan
     changes at most once a round); ok[i] False if some fan cannot be
     re-formed; frames[i] the detail of acc[i] (offset and normal in its
-    ring's frame; only ``with_frames``). ``stamps``: (chunks, n) scratch,
-    one row per parallel chunk, with its last tag in ``tags``.
+    ring's frame; only ``with_frames``). The work is split in ``n_chunks``
+    parts.
     """
     n_acc = acc.shape[0]
     width = R.shape[1]
@@ -693,18 +731,14 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
     buf_terms = np.empty((total, 3))
     ok = np.ones(n_acc, np.bool_)
     frames = np.empty((n_acc if with_frames else 0, 6))
-    n_chunks = stamps.shape[0]
     for ch in prange(n_chunks):
         cand, xs, ys, ordr, hull = fan_scratch(width)
-        stamp = stamps[ch]
-        tag = tags[ch]
         for i in range((n_acc * ch) // n_chunks, (n_acc * (ch + 1)) // n_chunks):
             p = acc[i]
             for j in range(nin[p]):
                 x = IN[p, j]
-                tag += 1
                 h, op = _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, ordr,
-                                hull, stamp, tag, buf[buf_off[i] + j])
+                                hull, buf[buf_off[i] + j])
                 if h < 0:
                     ok[i] = False
                     break
@@ -722,7 +756,6 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
             for c in range(3):
                 frames[i, c] = d[c]
                 frames[i, 3 + c] = e[c]
-        tags[ch] = tag
     return buf, buf_len, buf_open, buf_terms, ok, frames
 
 

@@ -29,12 +29,14 @@ from ._entropy_kernels import point_cc, point_terms
 from ._mesh_kernels import closed_ring, inversions
 from ._reduction_kernels import (
     INF,
+    _add,
     _grow,
     _heap_update,
     _sift_down,
     _to_frame,
     delaunay_fan,
     fan_scratch,
+    first_disjoint,
     local_frame,
     lowest_keys,
 )
@@ -212,19 +214,6 @@ def _parents(R, rlen, M, p):
     v = R[p, (at + 1) % k]
     q2 = u if (M[u] > M[v] or (M[u] == M[v] and u < v)) else v
     return q1, q2
-
-
-@njit(cache=True)
-def _add(cand, m, z, skip):
-    """``cand[:m]`` with z appended unless it is ``skip`` or there already: the new m.
-    (A scan of the few candidates costs less than the cache misses of a stamp array.)"""
-    if z == skip:
-        return m
-    for i in range(m):
-        if cand[i] == z:
-            return m
-    cand[m] = z
-    return m + 1
 
 
 @njit(cache=True)
@@ -535,8 +524,7 @@ def round_accept(cands, R, rlen, M, mark, tag, limit, acc, pq):
     """Highest entropy first, the candidates whose regions meet no accepted one's
     (at most ``limit``), into ``acc`` with their parents (q1, q2) in ``pq``; returns their
     number. The regions are gathered in parallel (packed, in candidate order), then chosen in
-    order: the serial part reads them in sequence and marks ``mark`` (any integer type) with
-    ``tag``."""
+    order (``_reduction_kernels.first_disjoint``, with ``mark`` and ``tag``)."""
     n_c = cands.shape[0]
     q = np.empty((n_c, 2), np.int64)
     off = np.empty(n_c + 1, np.int64)
@@ -559,23 +547,13 @@ def round_accept(cands, R, rlen, M, mark, tag, limit, acc, pq):
             for a in range(rlen[x]):
                 reg[m] = R[x, a]
                 m += 1
-    m = 0
-    for i in range(n_c):
-        if m == limit:
-            break
-        clash = False
-        for a in range(off[i], off[i + 1]):
-            if mark[reg[a]] == tag:
-                clash = True
-                break
-        if clash:
-            continue
-        for a in range(off[i], off[i + 1]):
-            mark[reg[a]] = tag
-        acc[m] = cands[i]
-        pq[m, 0] = q[i, 0]
-        pq[m, 1] = q[i, 1]
-        m += 1
+    chosen = np.empty(n_c, np.int64)
+    m = first_disjoint(off, reg, mark, tag, limit, chosen)
+    for j in range(m):
+        i = chosen[j]
+        acc[j] = cands[i]
+        pq[j, 0] = q[i, 0]
+        pq[j, 1] = q[i, 1]
     return m
 
 

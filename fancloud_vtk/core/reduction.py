@@ -258,6 +258,23 @@ def _source_arrays(fc: FanCloud):
 ROUND_FRACTION = 1 / 16
 
 
+class RoundMarks:
+    """The uint8 marks of a round's acceptance (``first_disjoint``): a new tag each round,
+    1..``cycle``, and the marks cleared when the tags wrap."""
+
+    cycle = 255
+
+    def __init__(self, n: int):
+        self.mark = np.zeros(n, np.uint8)
+        self._tag = 0
+
+    def next_tag(self) -> np.uint8:
+        self._tag = self._tag % self.cycle + 1
+        if self._tag == 1:
+            self.mark[:] = 0
+        return np.uint8(self._tag)
+
+
 class _Logs:
     """The growing log arrays of a reduction in rounds."""
 
@@ -292,17 +309,15 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
 
     n = len(pts)
     n_chunks = 2 * numba.get_num_threads()
-    stamps = np.zeros((n_chunks, n), np.int64)
-    tags = np.zeros(n_chunks, np.int64)
     width = R.shape[1]
     with_cc = method == RK.METHOD_ENTROPY
+    marks = RoundMarks(n)
     while counters[1] < n_remove:
         want = max(64, int(counters[0] * ROUND_FRACTION))
         cands = RK.round_candidates(key, active, want)
         if len(cands) == 0:
             break  # every remaining point is blocked
-        counters[5] += 1
-        acc = RK.accept_batch(cands, R, rlen, IN, nin, over, stamp, counters[5])
+        acc = RK.accept_batch(cands, R, rlen, IN, nin, over, marks.mark, marks.next_tag())
         if len(acc) == 0:
             # only points with overflowing in-lists left: one at a time
             heap, hpos = RK.heap_of(key, active)
@@ -321,7 +336,7 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
             logs.reserve(counters, len(acc) * width, int(buf_off[-1]),
                          int(buf_off[-1]) * width)
         buf, buf_len, buf_open, buf_terms, ok, frames = RK.reform_batch(
-            pts, nrm, col, dbar, R, rlen, ropen, IN, nin, acc, buf_off, stamps, tags,
+            pts, nrm, col, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
             write_logs)
         changed = RK.commit_batch(
             R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len, buf_open,

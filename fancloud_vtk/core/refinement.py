@@ -25,7 +25,7 @@ from ._entropy_kernels import mean_distance
 from .entropy import as_colors, as_fan_cloud, check_weights
 from .fans import Cancelled
 from .model import FanCloud, find_color_array
-from .reduction import MIN_WIDTH, ORIGINAL_ID, Hierarchy
+from .reduction import MIN_WIDTH, ORIGINAL_ID, Hierarchy, RoundMarks
 from .validation import FanCloudInputError
 
 #: refinement's default entropy weights: distance and curvature. The curvature-change term
@@ -144,8 +144,7 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, ring
         import numba
 
         n_chunks = 2 * numba.get_num_threads()
-        mark = np.zeros(n_alloc, np.uint8)  # round_accept's, with tags 1..255
-        atag = 0
+        marks = RoundMarks(n_alloc)
         stamp = np.zeros(n_alloc, np.int64)
         buf = _Buffers(round_cap, width)
         no_cc = not wa[2] > 0.0
@@ -155,10 +154,7 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, ring
             cands = FK.round_candidates(M, rlen, ropen, blocked, n_cur, want)
             if len(cands) == 0:
                 break
-            atag = atag % 255 + 1
-            if atag == 1:
-                mark[:] = 0
-            n_acc = FK.round_accept(cands, R, rlen, M, mark, np.uint8(atag),
+            n_acc = FK.round_accept(cands, R, rlen, M, marks.mark, marks.next_tag(),
                                     min(round_cap, target - n_cur), buf.acc, buf.pq)
             acc, pq = buf.acc[:n_acc], buf.pq[:n_acc]
             b = buf.view(n_acc)
