@@ -174,10 +174,15 @@ def _from_frame(fr, a, b, c):
 @njit(cache=True)
 def _error_cost(points, normals, R, rlen, x):
     """Distance of x to the plane of its ring (the surface change if x goes)."""
-    k = rlen[x]
+    return _ring_error(points, normals, x, R[x], rlen[x])
+
+
+@njit(cache=True)
+def _ring_error(points, normals, x, ring, k):
+    """:func:`_error_cost` of x with the ring ``ring[:k]``."""
     if k == 0:
         return 0.0
-    fr = local_frame(points, R[x], k, normals[x, 0], normals[x, 1], normals[x, 2])
+    fr = local_frame(points, ring, k, normals[x, 0], normals[x, 1], normals[x, 2])
     return abs((points[x, 0] - fr[0]) * fr[3] + (points[x, 1] - fr[1]) * fr[4]
                + (points[x, 2] - fr[2]) * fr[5])
 
@@ -711,13 +716,15 @@ def accept_batch(cands, R, rlen, IN, nin, over, mark, tag):
 
 @njit(cache=True, parallel=True)
 def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-                 with_frames):
+                 with_frames, cc, w, method, key_now):
     """Phase A: the new fans of every point whose fan contains an accepted point.
 
     Returns (buf, buf_len, buf_open, buf_terms, ok, frames): buf[buf_off[i] +
     j] the new ring of IN[acc[i], j] and buf_terms[...] the entropy terms
     (dist, curv, col) of that fan (they depend on its ring only, and a fan
-    changes at most once a round); ok[i] False if some fan cannot be
+    changes at most once a round), and with ``key_now`` its key as
+    ``update_keys`` would find it (``method`` 'error', or no M_cc weight:
+    then the key needs no other fan's new terms); ok[i] False if some fan cannot be
     re-formed; frames[i] the detail of acc[i] (offset and normal in its
     ring's frame; only ``with_frames``). The work is split in ``n_chunks``
     parts.
@@ -728,7 +735,7 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
     buf = np.empty((total, width), np.int32)
     buf_len = np.empty(total, np.int64)
     buf_open = np.empty(total, np.bool_)
-    buf_terms = np.empty((total, 3))
+    buf_terms = np.empty((total, 4))
     ok = np.ones(n_acc, np.bool_)
     frames = np.empty((n_acc if with_frames else 0, 6))
     for ch in prange(n_chunks):
@@ -745,8 +752,15 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
                 b = buf_off[i] + j
                 buf_len[b] = h
                 buf_open[b] = op
-                buf_terms[b, 0], buf_terms[b, 1], buf_terms[b, 2] = point_terms(
-                    points, normals, colors, x, buf[b], h, dbar)
+                d, cu, co = point_terms(points, normals, colors, x, buf[b], h, dbar)
+                buf_terms[b, 0] = d
+                buf_terms[b, 1] = cu
+                buf_terms[b, 2] = co
+                if key_now:
+                    if method == METHOD_ERROR:
+                        buf_terms[b, 3] = _ring_error(points, normals, x, buf[b], h)
+                    else:  # as _key (w[2] is 0, cc[x] unchanged this round)
+                        buf_terms[b, 3] = w[0] * d + w[1] * cu + w[2] * cc[x] + w[3] * co
             if not with_frames:
                 continue
             k = rlen[p]
@@ -826,7 +840,7 @@ def _write_logs(R, rlen, ropen, IN, nin, acc, frames, idx, rem_at, ent_at, ring_
 
 @njit(cache=True, parallel=True)
 def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
-           buf_open, buf_terms, dist, curv, col, stamp, tag, n_chunks):
+           buf_open, buf_terms, dist, curv, col, key_now, stamp, tag, n_chunks):
     """Make the removals ``acc[idx]``: fans re-formed (with their entropy terms), in-lists
     kept; the changed fans, once.
 
@@ -882,6 +896,8 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
             dist[x] = buf_terms[b, 0]
             curv[x] = buf_terms[b, 1]
             col[x] = buf_terms[b, 2]
+            if key_now:
+                key[x] = INF if k == 0 else buf_terms[b, 3]
         ev_n[j] = e - ev_off[j]
     n = nin.shape[0]
     for ch in prange(n_chunks):
@@ -910,15 +926,15 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
 
 
 def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len,
-                 buf_open, buf_terms, dist, curv, col, ok, frames, limit, counters, order,
-                 detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off,
+                 buf_open, buf_terms, dist, curv, col, key_now, ok, frames, limit, counters,
+                 order, detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off,
                  ent_ring, stamp, write_logs=True):
     """Phase B: log (in parallel) and apply (in index order) the removals a round makes.
 
     A point whose fans cannot all be re-formed stays, its key set to inf.
-    The changed fans get their new entropy terms (``buf_terms``). Returns
-    them (each once). ``write_logs`` False: nothing is logged (and the log
-    counters stay; ``frames`` may be empty).
+    The changed fans get their new entropy terms (``buf_terms``; and their
+    keys with ``key_now``). Returns them (each once). ``write_logs`` False:
+    nothing is logged (and the log counters stay; ``frames`` may be empty).
     """
     idx, rem_at, ent_at, ring_at = _plan_commit(rlen, IN, nin, key, acc, ok, limit, counters)
     m = len(idx)
@@ -933,17 +949,16 @@ def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, 
     counters[0] -= m
     counters[5] += 1
     return _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
-                  buf_open, buf_terms, dist, curv, col, stamp, counters[5],
+                  buf_open, buf_terms, dist, curv, col, key_now, stamp, counters[5],
                   get_num_threads() if m > 64 else 1)
 
 
 @njit(cache=True, parallel=True)
-def update_keys(points, normals, R, rlen, dist, curv, cc, col, key, w, method, dbar, ids,
-                with_cc):
+def update_keys(points, normals, R, rlen, dist, curv, cc, col, key, w, method, dbar, ids):
+    """M_cc and the keys of the fans ``ids`` (after every fan of the round has its terms)."""
     for i in prange(ids.shape[0]):
         y = ids[i]
-        if with_cc:
-            cc[y] = point_cc(points, curv, y, R[y], rlen[y], dbar)
+        cc[y] = point_cc(points, curv, y, R[y], rlen[y], dbar)
         value = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, y)
         key[y] = INF if rlen[y] == 0 else value
 

@@ -310,7 +310,8 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
     n = len(pts)
     n_chunks = 2 * numba.get_num_threads()
     width = R.shape[1]
-    with_cc = method == RK.METHOD_ENTROPY
+    # keys straight from the re-form, unless M_cc (which reads other fans' new terms) counts
+    key_now = not (method == RK.METHOD_ENTROPY and w[2] > 0)
     marks = RoundMarks(n)
     while counters[1] < n_remove:
         want = max(64, int(counters[0] * ROUND_FRACTION))
@@ -337,14 +338,15 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
                          int(buf_off[-1]) * width)
         buf, buf_len, buf_open, buf_terms, ok, frames = RK.reform_batch(
             pts, nrm, col, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-            write_logs)
+            write_logs, cc, w, method, key_now)
         changed = RK.commit_batch(
             R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len, buf_open,
-            buf_terms, dist, curv, colt, ok, frames, n_remove - counters[1], counters, order,
-            detail, rem_off, logs.rem_ring, rem_open, log_off, logs.ent_x, logs.ent_open,
+            buf_terms, dist, curv, colt, key_now, ok, frames, n_remove - counters[1], counters,
+            order, detail, rem_off, logs.rem_ring, rem_open, log_off, logs.ent_x, logs.ent_open,
             logs.ent_off, logs.ent_ring, stamp, write_logs)
-        RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, w, method, dbar, changed,
-                       with_cc)
+        if not key_now:
+            RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, w, method, dbar,
+                           changed)
         _report(progress, counters[1] / max(n_remove, 1), "reduction")
 
 
