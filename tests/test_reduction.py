@@ -311,3 +311,27 @@ def test_round_marks_wrap_without_changing_the_result(sphere_fans, monkeypatch):
     again = refine(sphere_fans, factor=1.5)
     np.testing.assert_array_equal(again.points, fine.points)
     np.testing.assert_array_equal(again.ring, fine.ring)
+
+
+@pytest.mark.parametrize("exact", [False, True])
+@pytest.mark.parametrize("with_hierarchy", [False, True])
+def test_progress_and_cancel(sphere_fans, exact, with_hierarchy):
+    """The reduction reports rising fractions from 0 to 1, and a True from the callback
+    cancels it (with or without logs, in rounds or one at a time) and leaves the input."""
+    from fancloud_vtk import Cancelled, refine
+
+    seen = []
+    reduce(sphere_fans, keep=0.2, exact=exact, return_hierarchy=with_hierarchy,
+           progress=lambda f, m: seen.append(f))
+    assert seen[0] == 0.0 and seen[-1] == 1.0 and len(seen) > 3
+    assert all(b >= a for a, b in zip(seen, seen[1:], strict=False))
+    before = fingerprint(*_arrays(reduce(sphere_fans, keep=0.9)))
+    ring = sphere_fans.ring.copy()
+    with pytest.raises(Cancelled):
+        reduce(sphere_fans, keep=0.2, exact=exact, return_hierarchy=with_hierarchy,
+               progress=lambda f, m: f > 0.5)
+    with pytest.raises(Cancelled):
+        refine(sphere_fans, factor=2, exact=exact, return_hierarchy=with_hierarchy,
+               progress=lambda f, m: f > 0.5)
+    np.testing.assert_array_equal(sphere_fans.ring, ring)
+    assert fingerprint(*_arrays(reduce(sphere_fans, keep=0.9))) == before
