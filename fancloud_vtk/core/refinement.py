@@ -90,8 +90,7 @@ class _Log:
         self.rr, self.ex, self.ex_open, self.ex_off, self.er = arrays
 
 
-def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, rings=True,
-            seq=None):
+def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, rings, seq):
     """Run the insertions; returns the arrays of the refined cloud and the log (with the
     rings a hierarchy needs if ``rings``; the exact mode always logs them). ``seq``: the
     points in an order to compute their first entropies in (space order is faster)."""
@@ -123,8 +122,7 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, ring
     wa = np.array(w)
     # the finest spacing allowed: a quarter of the mean spacing the target count would have
     gap = MIN_GAP * dbar * np.sqrt(n0 / target)
-    FK.update_entropy(pts, nrm, col, R, rlen, dist, curv, cc, colt, M, wa, dbar,
-                      np.arange(n0, dtype=np.int64) if seq is None else seq)
+    FK.update_entropy(pts, nrm, col, R, rlen, dist, curv, cc, colt, M, wa, dbar, seq)
     blocked = np.zeros(n_alloc, bool)
     log = _Log(m, width)
     n_cur = n0
@@ -343,7 +341,7 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     seq = _Grid(fc.points).order  # a spatial order to work in (the fan grid's)
     work = _delaunay(fc, seq)
     pts, nrm, R, rlen, ropen, log = _insert(work, target, w, rgb, dbar, bool(move), bool(exact),
-                                            progress, rings=bool(return_hierarchy), seq=seq)
+                                            progress, bool(return_hierarchy), seq)
     m = target - n0
     ids, offsets, ring, ok = RK.compact_level(R, rlen, np.ones(target, bool))
     if not ok:
