@@ -146,3 +146,54 @@ def test_bad_input():
         fan_cloud_to_mesh(good, rings="voronoi")
     with pytest.raises(ValueError, match="max_hole"):
         fan_cloud_to_mesh(good, max_hole=2)
+
+
+def _ring_by_monotone_chain(xs, ys, cand, max_ring):
+    """The closed ring as the strict monotone chain finds it (the reference)."""
+    from fancloud_vtk.core._mesh_kernels import _hull_ring
+
+    m = len(xs)
+    order = np.empty(m + 1, np.int64)
+    hull = np.empty(m + 2, np.int64)
+    h = _hull_ring(xs, ys, m, cand, order, hull)
+    if h < 3 or h > max_ring:
+        return None
+    hv = hull[:h]
+    if np.any(xs[hv] * ys[np.roll(hv, -1)] - ys[hv] * xs[np.roll(hv, -1)] <= 0.0):
+        return None  # the origin not strictly inside
+    ring = cand[hv]
+    return np.roll(ring, -int(np.argmin(ring)))
+
+
+@pytest.mark.parametrize("grid", [False, True])
+def test_closed_ring_gift_wrapping_matches_the_monotone_chain(grid):
+    """closed_ring (gift wrapping) finds the same ring as the strict monotone chain: the
+    same hull vertices, collinear points on hull edges dropped, the origin strictly inside,
+    counter-clockwise from the smallest index; -1 where the chain gives no ring."""
+    from fancloud_vtk.core._mesh_kernels import closed_ring
+
+    rng = np.random.default_rng(7)
+    n_ring = n_none = 0
+    for _ in range(3000):
+        m = int(rng.integers(3, 24))
+        if grid:  # small integers: many collinear points, the origin on hull edges
+            xy = rng.choice(np.arange(-3, 4), size=(3 * m, 2))
+            xy = np.unique(xy, axis=0)[: m]
+            xy = xy[rng.permutation(len(xy))].astype(float)
+        else:
+            xy = rng.normal(size=(m, 2)) + rng.normal(scale=0.7, size=2)
+        xs, ys = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
+        cand = rng.permutation(1000)[: len(xs)].astype(np.int64)
+        max_ring = int(rng.integers(3, 12))
+        hull = np.empty(len(xs) + 1, np.int64)
+        out = np.full(max_ring, -7, np.int64)
+        h = closed_ring(xs, ys, len(xs), cand.copy(), hull, max_ring, out)
+        want = _ring_by_monotone_chain(xs, ys, cand, max_ring)
+        if want is None:
+            assert h == -1
+            n_none += 1
+        else:
+            assert h == len(want)
+            assert np.array_equal(out[:h], want)
+            n_ring += 1
+    assert n_ring > 300 and n_none > 300  # both outcomes were tried

@@ -618,12 +618,11 @@ def grow_manifold(
 
 
 @njit(cache=True)
-def _hull_ring(xs, ys, m, idx, order, hull, origin_inside):
+def _hull_ring(xs, ys, m, idx, order, hull):
     """Vertices of the convex hull of (xs, ys)[:m], counter-clockwise, into hull.
 
     Andrew's monotone chain (strict turns: collinear points dropped).
-    Returns the number of hull vertices; with ``origin_inside``, -1 when
-    the origin is not strictly inside the hull.
+    Returns the number of hull vertices (-1 for fewer than 3).
     """
     for i in range(m):
         order[i] = i
@@ -665,13 +664,6 @@ def _hull_ring(xs, ys, m, idx, order, hull, origin_inside):
     h -= 1  # the first point closes the chain
     if h < 3:
         return -1
-    if not origin_inside:
-        return h
-    for t in range(h):  # the origin strictly inside
-        a = hull[t]
-        b = hull[(t + 1) % h]
-        if xs[a] * ys[b] - ys[a] * xs[b] <= 0.0:
-            return -1
     return h
 
 
@@ -706,15 +698,59 @@ def inversions(points, normals, p, cand, m, xs, ys):
 
 
 @njit(cache=True)
-def closed_ring(xs, ys, mm, cand, order, hull, max_ring, out):
+def closed_ring(xs, ys, mm, cand, hull, max_ring, out):
     """A closed Delaunay ring into ``out``: the hull vertices of the inversions,
     counter-clockwise from the smallest point index. -1 if they do not
-    surround the point or are more than ``max_ring``."""
+    surround the point or are more than ``max_ring``.
+
+    Gift wrapping from the smallest (x, y, index): each next vertex is the
+    candidate with all others on its left (the farthest of collinear ones,
+    so points inside a hull edge are dropped, as in the strict monotone
+    chain of ``_hull_ring``). About ``max_ring`` passes over the few
+    candidates cost less than sorting them.
+    """
     if mm < 3:
         return -1
-    h = _hull_ring(xs, ys, mm, cand, order, hull, True)
-    if h < 3 or h > max_ring:
+    s = 0
+    for i in range(1, mm):
+        if xs[i] < xs[s] or (xs[i] == xs[s] and (
+                ys[i] < ys[s] or (ys[i] == ys[s] and cand[i] < cand[s]))):
+            s = i
+    h = 0
+    a = s
+    while True:
+        if h == max_ring:
+            return -1
+        hull[h] = a
+        h += 1
+        ax = xs[a]
+        ay = ys[a]
+        b = -1
+        bx = 0.0
+        by = 0.0
+        for c in range(mm):
+            cx = xs[c] - ax
+            cy = ys[c] - ay
+            if cx == 0.0 and cy == 0.0:
+                continue
+            if b < 0:
+                b, bx, by = c, cx, cy
+                continue
+            turn = bx * cy - by * cx
+            if turn < 0.0 or (turn == 0.0 and cx * cx + cy * cy > bx * bx + by * by):
+                b, bx, by = c, cx, cy
+        if b < 0:
+            return -1
+        a = b
+        if a == s:
+            break
+    if h < 3:
         return -1
+    for t in range(h):  # the origin strictly inside
+        a = hull[t]
+        b = hull[(t + 1) % h]
+        if xs[a] * ys[b] - ys[a] * xs[b] <= 0.0:
+            return -1
     first = 0
     for t in range(1, h):
         if cand[hull[t]] < cand[hull[first]]:
@@ -750,7 +786,7 @@ def open_ring(xs, ys, mm, cand, order, hull, max_ring, out):
     else:
         xs[mm] = 0.0
         ys[mm] = 0.0
-    h = _hull_ring(xs, ys, mm + 1, cand, order, hull, False)
+    h = _hull_ring(xs, ys, mm + 1, cand, order, hull)
     at = -1
     for t in range(h):
         if cand[hull[t]] == -1:
@@ -785,7 +821,7 @@ def _delaunay_ring(
     mm = inversions(points, normals, p, cand, m, xs, ys)
     if is_open:
         return open_ring(xs, ys, mm, cand, order, hull, max_ring, table[p])
-    return closed_ring(xs, ys, mm, cand, order, hull, max_ring, table[p])
+    return closed_ring(xs, ys, mm, cand, hull, max_ring, table[p])
 
 
 @njit(cache=True, parallel=True)

@@ -243,7 +243,7 @@ def delaunay_fan(points, normals, is_open, x, cand, m, xs, ys, order, hull, widt
     """
     mm = inversions(points, normals, x, cand, m, xs, ys)
     if not is_open:
-        h = closed_ring(xs, ys, mm, cand, order, hull, width, out)
+        h = closed_ring(xs, ys, mm, cand, hull, width, out)
         if h > 0:
             return h, False
     if mm < 2:

@@ -318,7 +318,7 @@ def _plan(points, normals, colors, R, rlen, ropen, M, p, q1, q2, slot, move, gap
         for a in range(rlen[q]):
             m = _add(cand, m, R[q, a], slot)
     mm = inversions(points, normals, slot, cand, m, xs, ys)
-    h = closed_ring(xs, ys, mm, cand, ordr, hull, R.shape[1], ring_r)
+    h = closed_ring(xs, ys, mm, cand, hull, R.shape[1], ring_r)
     if h < 3:
         return 0, 0
     inside = False
