@@ -706,8 +706,9 @@ def closed_ring(xs, ys, mm, cand, hull, max_ring, out):
     Gift wrapping from the smallest (x, y, index): each next vertex is the
     candidate with all others on its left (the farthest of collinear ones,
     so points inside a hull edge are dropped, as in the strict monotone
-    chain of ``_hull_ring``). About ``max_ring`` passes over the few
-    candidates cost less than sorting them.
+    chain of ``_hull_ring``). One pass over the few candidates per ring
+    vertex (about six) costs less than sorting them; at most ``max_ring``
+    passes, so float ties cannot make it loop.
     """
     if mm < 3:
         return -1
