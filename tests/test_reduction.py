@@ -335,3 +335,29 @@ def test_progress_and_cancel(sphere_fans, exact, with_hierarchy):
                progress=lambda f, m: f > 0.5)
     np.testing.assert_array_equal(sphere_fans.ring, ring)
     assert fingerprint(*_arrays(reduce(sphere_fans, keep=0.9))) == before
+
+
+def test_stable_order_is_a_stable_argsort():
+    """The rounds' radix sort orders like a stable argsort: ties by position, -0.0 as 0.0,
+    negative, tiny (subnormal) and huge values, and the trivial sizes."""
+    from fancloud_vtk.core._reduction_kernels import stable_order
+
+    rng = np.random.default_rng(3)
+    cases = [
+        rng.random(3000),
+        -rng.random(3000),
+        rng.integers(-3, 4, 5000).astype(float),  # many ties
+        np.array([0.0, -0.0, 1.0, -0.0, 0.0, -1.0]),
+        rng.normal(size=4000) * 1e-300,
+        rng.normal(size=4000) * 1e300,
+        np.r_[rng.random(50), 1e-320, -1e-320, 5e-324, -5e-324],
+        np.r_[rng.random(100), np.inf, -np.inf, np.inf],
+        np.full(100, 2.5),
+        np.zeros(0),
+        np.array([7.0]),
+    ]
+    for v in cases:
+        before = v.copy()
+        got = stable_order(v)
+        assert np.array_equal(got, np.argsort(v, kind="stable"))
+        assert np.array_equal(v, before, equal_nan=True)  # the input is left alone

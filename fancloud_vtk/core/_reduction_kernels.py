@@ -604,6 +604,50 @@ def measure_detail(points, normals, order, rem_off, rem_ring):
 # order, the entropies of the re-formed fans recomputed in parallel.
 
 
+#: bits per digit of :func:`stable_order` (a count array of 2**11 stays in the L1 cache)
+ORDER_DIGIT = 11
+
+
+@njit(cache=True)
+def stable_order(v):
+    """``np.argsort(v, kind="mergesort")`` for float64 ``v`` without NaN (equal values keep
+    their order; -0.0 equals 0.0), by an LSD radix sort on the bits, skipping the digits
+    every value shares: several times faster than numba's merge sort."""
+    m = v.shape[0]
+    keys = np.empty(m, np.uint64)
+    bits = (v + 0.0).view(np.uint64)  # + 0.0: -0.0 becomes 0.0
+    top = np.uint64(1) << np.uint64(63)
+    for i in range(m):  # the bits in the order of the values
+        b = bits[i]
+        keys[i] = ~b if b & top else b | top
+    idx = np.arange(m)
+    keys2 = np.empty(m, np.uint64)
+    idx2 = np.empty(m, np.int64)
+    n_buckets = 1 << ORDER_DIGIT
+    count = np.empty(n_buckets, np.int64)
+    mask = np.uint64(n_buckets - 1)
+    for shift in range(0, 64, ORDER_DIGIT):
+        s = np.uint64(shift)
+        count[:] = 0
+        for i in range(m):
+            count[(keys[i] >> s) & mask] += 1
+        if m == 0 or count[(keys[0] >> s) & mask] == m:
+            continue
+        at = 0
+        for d in range(n_buckets):
+            c = count[d]
+            count[d] = at
+            at += c
+        for i in range(m):
+            d = (keys[i] >> s) & mask
+            keys2[count[d]] = keys[i]
+            idx2[count[d]] = idx[i]
+            count[d] += 1
+        keys, keys2 = keys2, keys
+        idx, idx2 = idx2, idx
+    return idx
+
+
 @njit(cache=True, parallel=True)
 def lowest_keys(vals, want):
     """About ``want`` indices of the lowest finite ``vals``, lowest first (ties: smaller index).
@@ -638,7 +682,7 @@ def lowest_keys(vals, want):
             if vals[x] <= thr and vals[x] < INF:
                 ids[at] = x
                 at += 1
-    order = np.argsort(vals[ids], kind="mergesort")  # stable: equal keys by index
+    order = stable_order(vals[ids])  # equal keys by index
     return ids[order]
 
 
