@@ -174,7 +174,9 @@ MESH_PARAMS: tuple[Param, ...] = (
         "boundaries stay open",
     ),
     Param(
-        "max_hole", "int", 32, "largest boundary loop, in edges, that counts as a hole to close",
+        "max_hole", "int", 32,
+        "largest boundary loop, in edges, that counts as a hole to close (a loop with no open "
+        "fan and unused points of closed fans inside is closed whatever its size)",
         range=(3, 100_000),
     ),
     Param(

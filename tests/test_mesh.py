@@ -197,3 +197,45 @@ def test_closed_ring_gift_wrapping_matches_the_monotone_chain(grid):
             assert np.array_equal(out[:h], want)
             n_ring += 1
     assert n_ring > 300 and n_none > 300  # both outcomes were tried
+
+
+def _cut_around(fc, mesh, p):
+    """The mesh without the triangles at p and its fan neighbours: a hole larger than three
+    edges with p and its neighbours inside, unused. Returns (triangles, inner points, cand)."""
+    from fancloud_vtk.core import _mesh_kernels as MK
+
+    tri = mesh.triangles
+    inner = np.r_[p, fc.neighbours(p)]
+    cut = tri[~np.isin(tri, inner).any(axis=1)]
+    edge_uv, _, edge_off, edge_tri = MK.build_edges(tri, fc.n_points)
+    v_edge_off, v_edges = MK.vertex_edges(edge_uv, fc.n_points)
+    cand = (tri, np.ones(len(tri), np.int64), edge_uv, edge_off, edge_tri, v_edge_off, v_edges)
+    return cut, inner, cand
+
+
+def test_a_hole_with_unused_points_inside_is_closed_whatever_max_hole():
+    """Unused points of closed fans inside a loop claim surface there: the loop is a hole
+    to close even above max_hole (it happened after ten reduce/refine cycles of the bunny:
+    a 34-edge hole with 7 points in it). Without such points, max_hole still decides."""
+    from fancloud_vtk.core.mesh import _close_holes, _insert_unused
+
+    fc = build_fans(sphere(3000, seed=4))
+    mesh = fan_cloud_to_mesh(fc)
+    cut, inner, cand = _cut_around(fc, mesh, 0)
+    (loop,) = boundary_loops(cut)
+    assert len(loop) > 3
+    out, closed, inserted = _close_holes(fc, cut, cand, max_hole=3)
+    assert closed == 1 and inserted >= 1
+    assert boundary_loops(out) == []
+    # the point whose neighbours are all inside (on no loop) is split in afterwards
+    out, split = _insert_unused(fc, out)
+    assert inserted + split == len(inner)
+    assert np.array_equal(np.unique(out), np.arange(fc.n_points))
+    assert len(out) == 2 * fc.n_points - 4  # a closed genus-0 surface again
+    # the same points with open fans claim nothing: the loop is above max_hole and stays
+    is_open = fc.open.copy()
+    is_open[inner] = True
+    no_claim = FanCloud(fc.points, fc.offsets, fc.ring, fc.normals, is_open, fc.rotated)
+    out, closed, _ = _close_holes(no_claim, cut, cand, max_hole=3)
+    assert closed == 0
+    assert len(out) == len(cut)

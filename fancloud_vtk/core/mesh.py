@@ -30,7 +30,8 @@ step before them and a last one after:
    (inside its gap); what stays pinched there is cut off (``pinch_cut``).
 4. **Holes closed.** Boundary loops that are holes, not the real boundary
    (at most ``max_hole`` edges and fewer than half of their edges joining
-   two open fans across a gap; a loop of three edges always), are
+   two open fans across a gap; a loop of three edges always; a loop with no
+   open fan and unused points of closed fans inside, whatever its size), are
    triangulated: a star around the loop's one unused point, a Delaunay
    fill with its unused points, or ear clipping; a hole that cannot be
    closed is widened by the triangles around it and tried again. Points
@@ -117,7 +118,9 @@ def fan_cloud_to_mesh(
         the real boundary (at least half of their edges joining two open
         fans across their gaps); those stay open.
     max_hole : int, default: 32
-        Largest boundary loop (in edges) that counts as a hole to close.
+        Largest boundary loop (in edges) that counts as a hole to close;
+        a loop with no open fan and unused points of closed fans inside is
+        closed whatever its size.
     self_intersections : bool, default: True
         Count self-intersecting triangle pairs in ``stats`` (costs about as
         much as the rest on large meshes).
@@ -321,24 +324,21 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
         starts = loop_off[:-1]
         any_open = np.add.reduceat(fc.open[loop_verts].astype(np.int64), starts) > 0
         any_wide = np.add.reduceat(widened[loop_verts].astype(np.int64), starts) > 0
-        take = (sizes == 3) | (((sizes <= max_hole) | any_wide) & ~any_open)
+        used = np.zeros(n, bool)
+        used[triangles.ravel()] = True
+        unused = np.flatnonzero(~used & ~fc.open)
+        # a loop with unused points of closed fans inside is surface they claim: a hole,
+        # whatever its size
+        every = np.ones(len(sizes), bool)
+        inside = np.zeros(len(sizes), bool)
+        inside[list(_points_inside(fc, unused, loop_verts, sizes, every))] = True
+        take = (sizes == 3) | (((sizes <= max_hole) | any_wide | inside) & ~any_open)
         for i in np.flatnonzero(any_open & ((sizes <= max_hole) | any_wide) & (sizes > 3)):
             take[i] = not _on_real_boundary(fc, loop_verts[starts[i] : loop_off[i + 1]])
         ids = np.flatnonzero(take)
         if len(ids) == 0:
             break
-        loop_id = np.repeat(np.arange(len(sizes)), sizes)
-        on_taken = np.repeat(take, sizes)
-        used = np.zeros(n, bool)
-        used[triangles.ravel()] = True
-        loop_of = np.full(n, -1, np.int64)
-        loop_of[loop_verts[on_taken]] = loop_id[on_taken]
-        interior = {}
-        for p in np.flatnonzero(~used & ~fc.open).tolist():
-            near = loop_of[fc.neighbours(p)]
-            near = near[near >= 0]
-            if len(near):
-                interior.setdefault(int(np.bincount(near).argmax()), []).append(p)
+        interior = _points_inside(fc, unused, loop_verts, sizes, take)
         edges = (triangles, vt_off, vt)
         new = []
         failed = []
@@ -393,6 +393,21 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
         MK.split_pinched(triangles, keep, n)
         triangles = triangles[keep]
     return triangles, closed, inserted
+
+
+def _points_inside(fc: FanCloud, points, loop_verts, sizes, which) -> dict:
+    """The ``points`` (unused, closed fans) inside the loops ``which`` (mask): each goes
+    to the loop that most of its fan neighbours are on. {loop: [points]}."""
+    loop_of = np.full(fc.n_points, -1, np.int64)
+    on = np.repeat(which, sizes)
+    loop_of[loop_verts[on]] = np.repeat(np.arange(len(sizes)), sizes)[on]
+    inside = {}
+    for p in points.tolist():
+        near = loop_of[fc.neighbours(p)]
+        near = near[near >= 0]
+        if len(near):
+            inside.setdefault(int(np.bincount(near).argmax()), []).append(p)
+    return inside
 
 
 def _insert_unused(fc: FanCloud, triangles):
