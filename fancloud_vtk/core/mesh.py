@@ -338,6 +338,8 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
         ids = np.flatnonzero(take)
         if len(ids) == 0:
             break
+        # again among the taken loops only: a point between a taken and an untaken loop
+        # goes to the taken one
         interior = _points_inside(fc, unused, loop_verts, sizes, take)
         edges = (triangles, vt_off, vt)
         new = []
