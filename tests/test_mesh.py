@@ -239,3 +239,45 @@ def test_a_hole_with_unused_points_inside_is_closed_whatever_max_hole():
     out, closed, _ = _close_holes(no_claim, cut, cand, max_hole=3)
     assert closed == 0
     assert len(out) == len(cut)
+
+
+def test_a_widening_the_retries_do_not_close_is_undone(monkeypatch):
+    """A hole that cannot be closed is widened and tried again; when the retries fail too,
+    the mesh is the one before the widening, not one eaten away around the hole (bone.ply
+    reduced to 10%: 249 grown triangles ended as 106). A widened hole the retry closes
+    stays closed."""
+    from fancloud_vtk.core import mesh as ME
+
+    fc = build_fans(sphere(3000, seed=4))
+    full = fan_cloud_to_mesh(fc).triangles
+    _, _, cand = _cut_around(fc, fan_cloud_to_mesh(fc), 0)
+    cut = full[1:]  # a three-edge hole, no point inside
+    real_clip = ME.MK.clip_ears
+    calls = []
+
+    def clip_fails(*args):
+        calls.append(len(args[-1]))  # ok stays False: every loop fails
+
+    monkeypatch.setattr(ME.MK, "clip_ears", clip_fails)
+    monkeypatch.setattr(ME, "_star", lambda *a: None)
+    monkeypatch.setattr(ME, "_delaunay_fill", lambda *a: None)
+    out, closed, inserted = ME._close_holes(fc, cut, cand, max_hole=32)
+    assert len(calls) == 4  # tried four times, widened three times
+    assert closed == 0 and inserted == 0
+    assert np.array_equal(out, cut)  # every widening undone
+
+    # the first attempt fails, the retry closes the widened hole: that result stays
+    calls.clear()
+
+    def clip_fails_once(*args):
+        calls.append(len(args[-1]))
+        if len(calls) > 1:
+            real_clip(*args)
+
+    monkeypatch.undo()
+    monkeypatch.setattr(ME.MK, "clip_ears", clip_fails_once)
+    out, closed, _ = ME._close_holes(fc, cut, cand, max_hole=32)
+    assert calls[0] == 1 and closed == 1  # the widened hole filled around its points
+    assert boundary_loops(out) == []
+    out, _ = ME._insert_unused(fc, out)
+    assert len(out) == 2 * fc.n_points - 4

@@ -34,7 +34,8 @@ step before them and a last one after:
    open fan and unused points of closed fans inside, whatever its size), are
    triangulated: a star around the loop's one unused point, a Delaunay
    fill with its unused points, or ear clipping; a hole that cannot be
-   closed is widened by the triangles around it and tried again. Points
+   closed is widened by the triangles around it and tried again (undone if
+   the retries do not close it either). Points
    still unused but lying over a triangle are split into it (1 -> 3).
 
 The counts of every stage and the checks of the result (boundary edges,
@@ -307,7 +308,9 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
     it has every loop edge; otherwise (and for loops with no unused point:
     most of them, in one numba call) the loop is clipped ear by ear. A loop
     that cannot be closed is widened by the triangles around it and tried
-    again (``rounds`` times). ``cand`` holds the candidate triangles, their
+    again (``rounds`` attempts in all); if the last attempt leaves a widened
+    hole open, the result is the state after a round's fills with the
+    largest area (the widening undone). ``cand`` holds the candidate triangles, their
     counts and their edges (``tri, count, edge_uv, edge_off, edge_tri,
     v_edge_off, v_edges``, see :func:`fan_cloud_to_mesh`). Returns
     (triangles, holes closed, points inserted).
@@ -315,7 +318,10 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
     n = fc.n_points
     closed = inserted = 0
     widened = np.zeros(n, bool)  # around holes that were widened: any size goes
-    for _ in range(rounds):
+    # the state after a round's fills with the largest area: a widened hole that the retries
+    # do not close leaves less, and the widening is then undone
+    best = (-1.0, triangles, 0, 0)
+    for last in range(rounds - 1, -1, -1):
         vt_off, vt = MK.vertex_triangles(triangles, n)
         loop_off, loop_verts = MK.boundary_loops_manifold(triangles, vt_off, vt, n)
         sizes = np.diff(loop_off)
@@ -383,7 +389,10 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
         new = [t for t in new if len(t)]
         if new:
             triangles = np.vstack([triangles, *new])
-        if not failed:
+        area = _area(fc.points, triangles)
+        if area >= best[0]:
+            best = (area, triangles, closed, inserted)
+        if not failed or last == 0:
             break
         # widen the holes that failed by the triangles around them, and retry
         around = np.zeros(n, bool)
@@ -394,7 +403,19 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
         keep = np.ones(len(triangles), bool)
         MK.split_pinched(triangles, keep, n)
         triangles = triangles[keep]
-    return triangles, closed, inserted
+    if not widened.any() or _area(fc.points, triangles) >= best[0]:
+        return triangles, closed, inserted
+    vt_off, vt = MK.vertex_triangles(triangles, n)
+    loop_off, loop_verts = MK.boundary_loops_manifold(triangles, vt_off, vt, n)
+    if not widened[loop_verts].any():
+        return triangles, closed, inserted  # the widened holes are closed
+    return best[1:]
+
+
+def _area(points, triangles) -> float:
+    """The area of a triangle mesh."""
+    a, b, c = (points[triangles[:, i]] for i in range(3))
+    return 0.5 * float(np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
 
 
 def _points_inside(fc: FanCloud, points, loop_verts, sizes, which) -> dict:
