@@ -21,7 +21,7 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from ._entropy_kernels import point_cc, point_terms
-from ._mesh_kernels import _tangent, closed_ring, inversions, open_ring
+from ._mesh_kernels import NOT_STEEP, _tangent, closed_ring, inversions, open_ring
 
 METHOD_ENTROPY = 0
 METHOD_ERROR = 1
@@ -221,7 +221,7 @@ def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, ou
     for a in range(rlen[p]):
         m = _add(cand, m, R[p, a], x)
     return delaunay_fan(points, normals, ropen[x], x, cand, m, xs, ys, order, hull, R.shape[1],
-                        out)
+                        NOT_STEEP, out)
 
 
 @njit(cache=True)
@@ -234,14 +234,15 @@ def fan_scratch(width):
 
 
 @njit(cache=True)
-def delaunay_fan(points, normals, is_open, x, cand, m, xs, ys, order, hull, width, out):
+def delaunay_fan(points, normals, is_open, x, cand, m, xs, ys, order, hull, width, steep, out):
     """x's local Delaunay ring in its tangent plane among ``cand[:m]``, written to ``out``.
 
     A closed fan stays closed if its candidates surround x, else (or if it
-    was open) it is the open Delaunay fan. Returns (size, open); size -1 if
-    no fan can be formed.
+    was open) it is the open Delaunay fan. ``steep``: see
+    ``_mesh_kernels.inversions``. Returns (size, open); size -1 if no fan can
+    be formed.
     """
-    mm = inversions(points, normals, x, cand, m, xs, ys)
+    mm = inversions(points, normals, x, cand, m, xs, ys, steep)
     if not is_open:
         h = closed_ring(xs, ys, mm, cand, hull, width, out)
         if h > 0:

@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from ._entropy_kernels import point_cc, point_terms
-from ._mesh_kernels import closed_ring, inversions
+from ._mesh_kernels import STEEP, closed_ring, inversions
 from ._reduction_kernels import (
     INF,
     _add,
@@ -226,7 +226,7 @@ def _reform_with(points, normals, R, rlen, ropen, x, r, cand, xs, ys, ordr, hull
     cand[m] = r
     m += 1
     return delaunay_fan(points, normals, ropen[x], x, cand, m, xs, ys, ordr, hull,
-                         R.shape[1], out)
+                         R.shape[1], STEEP, out)
 
 
 @njit(cache=True)
@@ -317,7 +317,7 @@ def _plan(points, normals, colors, R, rlen, ropen, M, p, q1, q2, slot, move, gap
         m = _add(cand, m, q, slot)
         for a in range(rlen[q]):
             m = _add(cand, m, R[q, a], slot)
-    mm = inversions(points, normals, slot, cand, m, xs, ys)
+    mm = inversions(points, normals, slot, cand, m, xs, ys, STEEP)
     h = closed_ring(xs, ys, mm, cand, hull, R.shape[1], ring_r)
     if h < 3:
         return 0, 0

@@ -193,6 +193,7 @@ def fan_cloud_to_mesh(
             width,
             2 * numba.get_num_threads(),
             np.zeros(0, np.int64),  # already in the grid's order
+            MK.NOT_STEEP,
         )
         offsets, ring = MK.compact_rings(counts, table)
         fans = FanCloud(

@@ -370,7 +370,7 @@ def _delaunay(fc: FanCloud, seq) -> FanCloud:
 
     width = max(MIN_WIDTH, int(fc.fan_sizes.max(initial=0)))
     counts, table = MK.delaunay_rings(fc.points, fc.normals, fc.offsets, fc.ring, fc.open, width,
-                                      2 * numba.get_num_threads(), seq)
+                                      2 * numba.get_num_threads(), seq, MK.STEEP)
     offsets, ring = MK.compact_rings(counts, table)
     return FanCloud(fc.points, offsets, ring, fc.normals, fc.open, fc.rotated, fc.point_data)
 
