@@ -15,10 +15,13 @@ interest refined selectively.
 
 from __future__ import annotations
 
+import errno
 import numbers
+import os
 
 import numpy as np
 
+from ..io import FileReadError
 from . import _reduction_kernels as RK
 from ._entropy_kernels import mean_distance
 from .entropy import DEFAULT_WEIGHTS, as_colors, as_fan_cloud, check_weights
@@ -102,6 +105,12 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
     -------
     Hierarchy
 
+    Raises
+    ------
+    ValueError
+        A cloud of fewer than 4 points; ``n_points`` larger than the cloud
+        or below 4; bad weights, method or colours.
+
     Examples
     --------
     >>> import numpy as np
@@ -114,6 +123,9 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
     (500, 2000)
     """
     fc = as_fan_cloud(fancloud)
+    if n_points is None and fc.n_points < MIN_POINTS:
+        raise ValueError(f"cannot build a hierarchy of {fc.n_points} points: a fan cloud needs "
+                         f"at least {MIN_POINTS}")
     target = MIN_POINTS if n_points is None else target_count(fc.n_points, n_points, None)
     return _run(fc, target, n_points is not None, weights, method, colors, exact, progress,
                 logs=True)
@@ -448,14 +460,53 @@ def laplacian_smooth(fancloud: FanCloud, iterations: int = 1, factor: float = 0.
     return out
 
 
-def _indices(arr) -> np.ndarray:
+class _NoSuchFile(FileReadError, FileNotFoundError):
+    """A missing file: a :class:`~fancloud_vtk.io.FileReadError` (a ``ValueError``) as
+    :func:`~fancloud_vtk.io.read_point_cloud` raises, and a ``FileNotFoundError`` as
+    :meth:`FanCloud.load` raises."""
+
+    def __init__(self, path: str, reason: str = "no such file"):
+        super().__init__(path, reason)
+        self.errno, self.strerror, self.filename = errno.ENOENT, reason, path
+
+    def __reduce__(self):
+        return type(self), (self.path, self.reason)
+
+
+def _inconsistent(problem: str) -> ValueError:
+    return ValueError(f"inconsistent hierarchy: {problem}")
+
+
+def _ints(arr, name: str) -> np.ndarray:
+    """An integer array of the hierarchy as int64 (floats are refused, not truncated)."""
+    arr = np.asarray(arr)
+    if arr.dtype.kind not in "iu":
+        raise _inconsistent(f"{name} must hold integers, got {arr.dtype}")
+    return arr.astype(np.int64, copy=False)
+
+
+def _indices(arr, name: str) -> np.ndarray:
     """Point indices as int32 (the logs are long: half the memory) or int64 past 2**31."""
     arr = np.asarray(arr)
     if arr.dtype.kind not in "iu":
-        raise ValueError(f"hierarchy index arrays must be integers, got {arr.dtype}")
-    if arr.dtype == np.int32 or (len(arr) and arr.max() >= 2**31):
+        raise _inconsistent(f"{name} must hold integer point indices, got {arr.dtype}")
+    if arr.dtype == np.int32:
         return np.ascontiguousarray(arr)
+    if arr.size and (arr.max() >= 2**31 or arr.min() < -(2**31)):
+        return np.ascontiguousarray(arr, dtype=np.int64)  # out of range: _check says so
     return arr.astype(np.int32)
+
+
+def _flags(arr, name: str) -> np.ndarray:
+    arr = np.asarray(arr)
+    if arr.dtype.kind not in "biu":
+        raise _inconsistent(f"{name} must hold booleans, got {arr.dtype}")
+    return arr.astype(bool, copy=False)
+
+
+def _first(mask) -> int:
+    """Index of the first True of a bool array."""
+    return int(np.flatnonzero(mask)[0])
 
 
 class Hierarchy:
@@ -484,47 +535,126 @@ class Hierarchy:
         self.source = FanCloud(source.points, source.offsets, source.ring, source.normals,
                                source.open, source.rotated, pdata)
         self.original_id = original
-        self.order = np.asarray(order, np.int64)
-        self.rem_off = np.asarray(rem_off, np.int64)
-        self.rem_ring = _indices(rem_ring)
-        self.rem_open = np.asarray(rem_open, bool)
-        self.detail = np.asarray(detail, np.float64)
-        self.log_off = np.asarray(log_off, np.int64)
-        self.ent_x = _indices(ent_x)
-        self.ent_open = np.asarray(ent_open, bool)
-        self.ent_off = np.asarray(ent_off, np.int64)
-        self.ent_ring = _indices(ent_ring)
-        self.coarse_off = np.asarray(coarse_off, np.int64)
-        self.coarse_ring = np.asarray(coarse_ring, np.int64)
-        self.coarse_open = np.asarray(coarse_open, bool)
+        self.order = _ints(order, "order")
+        self.rem_off = _ints(rem_off, "rem_off")
+        self.rem_ring = _indices(rem_ring, "rem_ring")
+        self.rem_open = _flags(rem_open, "rem_open")
+        detail = np.asarray(detail)
+        if detail.dtype.kind not in "biuf":
+            raise _inconsistent(f"detail must hold numbers, got {detail.dtype}")
+        self.detail = detail.astype(np.float64, copy=False)
+        self.log_off = _ints(log_off, "log_off")
+        self.ent_x = _indices(ent_x, "ent_x")
+        self.ent_open = _flags(ent_open, "ent_open")
+        self.ent_off = _ints(ent_off, "ent_off")
+        self.ent_ring = _indices(ent_ring, "ent_ring")
+        self.coarse_off = _ints(coarse_off, "coarse_off")
+        self.coarse_ring = _ints(coarse_ring, "coarse_ring")
+        self.coarse_open = _flags(coarse_open, "coarse_open")
         self.weights = tuple(float(x) for x in weights)
         self.method = str(method)
         self._check()
 
+    #: the CSR offset arrays and the arrays they index
+    _CSR = (("rem_off", "rem_ring"), ("log_off", "ent_x"), ("ent_off", "ent_ring"),
+            ("coarse_off", "coarse_ring"))
+
     def _check(self):
-        n = self.source.n_points
+        """Raise ``ValueError("inconsistent hierarchy: ...")`` unless the arrays fit together.
+
+        Shapes; CSR offsets that start at 0, never decrease and end at the
+        length of the array they index; point indices in range; a removal
+        order without repeats; rings that name only points present at their
+        level; finite detail, points, normals and weights. What passes cannot
+        make the kernels of :meth:`level` read or write out of bounds.
+        """
+        n = self.n_points
+        flat = ("order", "rem_ring", "ent_x", "ent_ring", "coarse_ring")
+        problems = [f"{name} must be one-dimensional, got shape {getattr(self, name).shape}"
+                    for name in flat if getattr(self, name).ndim != 1]
+        if problems:
+            raise _inconsistent("; ".join(problems))
         r = len(self.order)
-        problems = []
-        if r >= n or len(self.rem_off) != r + 1 or len(self.log_off) != r + 1:
-            problems.append("removal arrays of inconsistent lengths")
-        if self.detail.shape != (r, 6) or len(self.rem_open) != r:
-            problems.append("detail or rem_open of the wrong shape")
-        if len(self.coarse_off) != n + 1 or len(self.coarse_open) != n:
-            problems.append("coarse level of the wrong size")
-        if len(self.original_id) != n:
-            problems.append("original_id of the wrong length")
+        n_ent = len(self.ent_x)
+        shapes = {"rem_off": (r + 1,), "rem_open": (r,), "detail": (r, 6), "log_off": (r + 1,),
+                  "ent_open": (n_ent,), "ent_off": (n_ent + 1,), "coarse_off": (n + 1,),
+                  "coarse_open": (n,), "original_id": (n,)}
+        problems = [f"{name} has shape {getattr(self, name).shape}, expected {shape}"
+                    for name, shape in shapes.items() if getattr(self, name).shape != shape]
+        if r >= n:
+            problems.append(f"order removes {r} of the {n} points (at least one must stay)")
+        if problems:
+            raise _inconsistent("; ".join(problems))
+        for off_name, values_name in self._CSR:
+            off = getattr(self, off_name)
+            size = len(getattr(self, values_name))
+            if off[0] != 0:
+                problems.append(f"{off_name} starts at {int(off[0])}, not 0")
+            elif np.any(off[1:] < off[:-1]):
+                i = _first(off[1:] < off[:-1])
+                problems.append(f"{off_name} decreases at entry {i + 1} "
+                                f"({int(off[i])} to {int(off[i + 1])})")
+            elif off[-1] != size:
+                problems.append(f"{off_name} ends at {int(off[-1])}, not at the length of "
+                                f"{values_name} ({size})")
         for name in ("order", "rem_ring", "ent_x", "ent_ring", "coarse_ring"):
             arr = getattr(self, name)
             if len(arr) and (arr.min() < 0 or arr.max() >= n):
-                problems.append(f"{name} indices out of range")
-        if not problems and (self.rem_off[-1] != len(self.rem_ring)
-                             or self.log_off[-1] != len(self.ent_x)
-                             or len(self.ent_off) != len(self.ent_x) + 1
-                             or self.ent_off[-1] != len(self.ent_ring)
-                             or self.coarse_off[-1] != len(self.coarse_ring)):
-            problems.append("CSR offsets do not match their arrays")
+                i = _first((arr < 0) | (arr >= n))
+                problems.append(f"{name} entry {i} is {int(arr[i])}, out of range for {n} points")
         if problems:
-            raise ValueError("inconsistent hierarchy: " + "; ".join(problems))
+            raise _inconsistent("; ".join(problems))
+        count = np.bincount(self.order, minlength=n)
+        if np.any(count > 1):
+            problems.append(f"order removes point {_first(count > 1)} more than once")
+        for name, arr in (("detail", self.detail), ("source points", self.source.points),
+                          ("source normals", self.source.normals),
+                          ("weights", np.asarray(self.weights))):
+            if not np.isfinite(arr).all():
+                problems.append(f"{name} contain NaN or infinite values")
+        if self.method not in METHODS:
+            problems.append(f"method must be one of {sorted(METHODS)}, got {self.method!r}")
+        if problems:
+            raise _inconsistent("; ".join(problems))
+        self._check_rings()
+
+    def _check_rings(self):
+        """Every ring names only points present when it is in use: a removed point's ring
+        (and the rings its removal re-formed) points not removed before it, the coarsest
+        level's rings its kept points; no ring names its own point."""
+        n = self.n_points
+        r = len(self.order)
+        at = np.full(n, r, np.int64)  # when each point is removed (r: never)
+        at[self.order] = np.arange(r)
+        rem_sizes = np.diff(self.rem_off)
+        if np.any(rem_sizes == 0):
+            i = _first(rem_sizes == 0)
+            raise _inconsistent(f"removal {i} (point {int(self.order[i])}) has an empty ring")
+        removal = np.repeat(np.arange(r), rem_sizes)
+        bad = at[self.rem_ring] <= removal
+        if np.any(bad):
+            i = int(removal[_first(bad)])
+            raise _inconsistent(f"rem_ring of removal {i} names a point removed before it or "
+                                "the removed point itself")
+        removal = np.repeat(np.arange(r), np.diff(self.log_off))
+        bad = at[self.ent_x] <= removal
+        if np.any(bad):
+            e = _first(bad)
+            raise _inconsistent(f"ent_x entry {e} (removal {int(removal[e])}) names a point "
+                                "removed by then")
+        entry = np.repeat(np.arange(len(self.ent_x)), np.diff(self.ent_off))
+        bad = (at[self.ent_ring] < removal[entry]) | (self.ent_ring == self.ent_x[entry])
+        if np.any(bad):
+            e = int(entry[_first(bad)])
+            raise _inconsistent(f"ent_ring of entry {e} (removal {int(removal[e])}) names its "
+                                "own point or a point removed before that removal")
+        owner = np.repeat(np.arange(n), np.diff(self.coarse_off))
+        kept = at == r
+        bad = kept[owner] & (~kept[self.coarse_ring] | (self.coarse_ring == owner))
+        if np.any(bad):
+            p = int(owner[_first(bad)])
+            raise _inconsistent(f"the coarsest level's ring of point {p} names a removed point "
+                                "or the point itself")
 
     # -- sizes --------------------------------------------------------------
     @property
@@ -703,6 +833,14 @@ class Hierarchy:
         FanCloud
             The coarse level's points plus the reinserted ones, with
             ``original_id``.
+
+        Raises
+        ------
+        ValueError
+            A region of none of these kinds; a mask or a callable's result of
+            the wrong shape; a sphere with a radius <= 0 or a NaN or infinite
+            centre or radius; box bounds with a NaN or a min > max (infinite
+            bounds are allowed: an open box); both ``base`` and ``start``.
         """
         from .fans import build_fans
 
@@ -784,38 +922,102 @@ class Hierarchy:
 
     @classmethod
     def load(cls, path) -> Hierarchy:
-        """Read a hierarchy written by :meth:`save`."""
-        path = str(path)
-        if path.lower().endswith(".vtp"):
-            from fancloud_vtk.algorithms.convert import hierarchy_from_vtk, read_vtp
+        """Read a hierarchy written by :meth:`save`.
 
-            return hierarchy_from_vtk(read_vtp(path))
-        if not path.lower().endswith(".npz"):
+        Parameters
+        ----------
+        path : str or os.PathLike
+            A ``.npz`` or ``.vtp`` file.
+
+        Returns
+        -------
+        Hierarchy
+
+        Raises
+        ------
+        ValueError
+            A path that does not end in ``.npz`` or ``.vtp``.
+        fancloud_vtk.io.FileReadError
+            (a ``ValueError``) naming the path: the file is missing (then the
+            error is also a ``FileNotFoundError``), a directory, empty,
+            unreadable or damaged, not a saved hierarchy, or its arrays are
+            inconsistent (``inconsistent hierarchy: ...``).
+        """
+        path = os.fspath(path)
+        if isinstance(path, bytes):
+            path = os.fsdecode(path)
+        lower = path.lower()
+        if not lower.endswith((".npz", ".vtp")):
             raise ValueError(f"a hierarchy is read from .npz or .vtp, got {path!r}")
+        if not os.path.exists(path):
+            raise _NoSuchFile(path)
+        if os.path.isdir(path):
+            raise FileReadError(path, "is a directory, not a file")
+        if os.path.getsize(path) == 0:
+            raise FileReadError(path, "the file is empty (0 bytes)")
         try:
-            with np.load(path, allow_pickle=False) as z:
-                data = {k: z[k] for k in z.files}
-        except (OSError, ValueError, EOFError) as exc:
-            raise OSError(f"cannot read hierarchy {path!r}: {exc}") from exc
+            if lower.endswith(".vtp"):
+                from fancloud_vtk.algorithms.convert import hierarchy_from_vtk, read_vtp
+
+                return hierarchy_from_vtk(read_vtp(path))
+            return cls._from_npz(path)
+        except FileReadError:
+            raise
+        except ValueError as exc:  # read_vtp's own message names the path already
+            raise FileReadError(path, str(exc).removeprefix(f"could not read {path}: ")) \
+                from exc
+
+    @classmethod
+    def _from_npz(cls, path: str) -> Hierarchy:
+        # our own file object: np.load leaves its own open when the archive is bad
+        with open(path, "rb") as fh:
+            try:
+                z = np.load(fh, allow_pickle=False)
+            except Exception as exc:  # OSError, ValueError, EOFError, zipfile.BadZipFile...
+                raise FileReadError(path, f"not a readable .npz file ({type(exc).__name__}: "
+                                          f"{exc})") from exc
+            if not hasattr(z, "files"):  # a single .npy array under an .npz name
+                raise FileReadError(path, "not an .npz archive (a single .npy array)")
+            try:
+                with z:
+                    data = {k: z[k] for k in z.files}
+            except Exception as exc:  # a damaged member: BadZipFile, zlib.error, ValueError...
+                raise FileReadError(path, f"a damaged .npz archive ({type(exc).__name__}: "
+                                          f"{exc})") from exc
+        needed = ("points", "offsets", "ring", "normals", "open", "rotated", "weights",
+                  "method", *(f"h_{k}" for k in _HIER_ARRAYS))
+        missing = [k for k in needed if k not in data]
+        if missing:
+            more = f" and {len(missing) - 1} more" if len(missing) > 1 else ""
+            raise FileReadError(path, f"not a saved hierarchy (Hierarchy.save): no array "
+                                      f"{missing[0]!r}{more}")
         try:
             pdata = {k[3:]: v for k, v in data.items() if k.startswith("pd_")}
             fc = FanCloud(data["points"], data["offsets"], data["ring"], data["normals"],
                           data["open"], data["rotated"], pdata)
             h = {k[2:]: v for k, v in data.items() if k.startswith("h_")}
-            return cls.from_arrays(fc, h, tuple(data["weights"]), str(data["method"]))
-        except KeyError as exc:
-            raise OSError(f"{path!r} is not a saved hierarchy: no array {exc}") from None
+            weights = np.asarray(data["weights"], np.float64).reshape(-1)
+            return cls.from_arrays(fc, h, tuple(weights), str(data["method"]))
+        except (TypeError, ValueError) as exc:
+            raise FileReadError(path, str(exc)) from exc
 
     @classmethod
     def from_arrays(cls, source: FanCloud, arrays: dict, weights, method) -> Hierarchy:
-        """A hierarchy from its source fan cloud and the arrays of :meth:`_arrays`."""
+        """A hierarchy from its source fan cloud and the arrays of :meth:`_arrays`.
+
+        Raises ``ValueError`` (``inconsistent hierarchy: ...``, naming the
+        array and the problem) unless the arrays fit together.
+        """
         missing = [k for k in _HIER_ARRAYS if k not in arrays]
         if missing:
             raise ValueError(f"hierarchy arrays missing: {missing}")
+        original = _ints(arrays["original_id"], "original_id")
         src = FanCloud(source.points, source.offsets, source.ring, source.normals, source.open,
-                       source.rotated, {**source.point_data, ORIGINAL_ID: arrays["original_id"]})
+                       source.rotated, {**source.point_data, ORIGINAL_ID: original})
         kw = {k: arrays[k] for k in _HIER_ARRAYS if k != "original_id"}
-        kw["detail"] = np.asarray(kw["detail"]).reshape(-1, 6)
+        detail = np.asarray(kw["detail"])
+        if detail.size % 6 == 0:
+            kw["detail"] = detail.reshape(-1, 6)
         return cls(source=src, weights=weights, method=method, **kw)
 
 
@@ -839,10 +1041,19 @@ def _region_mask(region, pts, removed, n) -> np.ndarray:
         radius = float(region[1])
         if center.shape != (3,) or not radius > 0:
             raise ValueError("a sphere region is (center (3 numbers), radius > 0)")
+        if not np.isfinite(center).all():
+            raise ValueError(f"a sphere region's center must be finite, got {center.tolist()}")
+        if not np.isfinite(radius):
+            raise ValueError(f"a sphere region's radius must be finite, got {radius}")
         return np.linalg.norm(pts[removed] - center, axis=1) <= radius
     box = np.asarray(region, dtype=np.float64) if isinstance(region, (tuple, list, np.ndarray)) \
         else None
     if box is not None and box.shape == (6,):
+        if np.isnan(box).any():
+            raise ValueError(f"region bounds must be numbers, got NaN: {box.tolist()}")
+        if np.any(box[0::2] > box[1::2]):
+            raise ValueError(f"region bounds must be (xmin, xmax, ymin, ymax, zmin, zmax) with "
+                             f"min <= max, got {box.tolist()}")
         p = pts[removed]
         return ((p[:, 0] >= box[0]) & (p[:, 0] <= box[1]) & (p[:, 1] >= box[2])
                 & (p[:, 1] <= box[3]) & (p[:, 2] >= box[4]) & (p[:, 2] <= box[5]))
