@@ -592,6 +592,9 @@ def main(argv=None) -> int:
     except (ValueError, TypeError, OSError, RuntimeError) as exc:
         print(f"fancloud {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except MemoryError as exc:
+        print(f"fancloud {args.command}: error: out of memory: {exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         return 130
 

@@ -319,3 +319,13 @@ def test_open_and_flat_boxes_are_regions(hier):
     assert every.n_points == hier.n_points
     flat = hier.selective((0, 0, -2, 2, -2, 2))
     assert flat.n_points == hier.n_min
+
+
+def test_an_edited_base_with_nan_points_is_refused(hier):
+    """A coarse level edited in place (a smoothing gone wrong) must not give NaN points."""
+    from fancloud_vtk import FanCloudInputError
+
+    base = hier.level(500)
+    base.points[3] = np.nan
+    with pytest.raises(FanCloudInputError, match="points contain NaN or infinite"):
+        hier.level(1500, base=base)

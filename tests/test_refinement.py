@@ -9,6 +9,7 @@ from fancloud_vtk import (
     FanCloudInputError,
     Hierarchy,
     build_fans,
+    entropy,
     fan_cloud_of_mesh,
     fan_cloud_to_mesh,
     hierarchy,
@@ -295,3 +296,78 @@ def test_the_refinements_rings_skip_steep_turned_candidates():
     # 2: 84 degrees up, normal turned 90: skipped; 3: as steep, not turned; 4: turned 37
     assert kept(MK.STEEP) == {1, 3, 4}
     assert kept(MK.NOT_STEEP) == {1, 2, 3, 4}
+
+
+def test_a_named_colour_array_is_interpolated():
+    """``colors="name"`` makes that array the colour array: combined like a float, rounded,
+    not copied from p (it used to be only the usual names, RGB, RGBA, Colors...)."""
+    pts, _ = flat_patch(2000, 120, seed=4)
+    shade = np.zeros((len(pts), 3), np.uint8)
+    shade[:, 0] = np.round(255 * pts[:, 0])
+    fc = build_fans(pts, point_data={"shade": shade})
+    fine = refine(fc, factor=1.5, colors="shade", weights=(1, 1, 0, 1))
+    n0 = fc.n_points
+    out = fine.point_data["shade"]
+    assert out.dtype == np.uint8
+    assert np.abs(out[n0:, 0].astype(float) - 255 * fine.points[n0:, 0]).max() <= 1.0
+
+
+def test_non_finite_or_zero_normals_are_rejected(sphere_fans):
+    for what, value, match in [("normals", np.nan, "Normals contain NaN or infinite values"),
+                               ("points", np.inf, "points contain NaN or infinite coordinates"),
+                               ("normals", 0.0, "zero normals at 1 point")]:
+        bad = sphere_fans.copy()
+        getattr(bad, what)[7] = value
+        for call in (entropy, lambda fc: reduce(fc, 1000), lambda fc: refine(fc, factor=2)):
+            with pytest.raises(FanCloudInputError, match=match):
+                call(bad)
+
+
+def test_stuck_at_sharp_corners_says_why():
+    """An octahedron's fans are all closed, but its parents' normals are 90 degrees apart
+    everywhere: the move refuses every insertion, and the message says so."""
+    pts = np.vstack([np.eye(3), -np.eye(3)])
+    tri = np.array([[0, 1, 2], [1, 3, 2], [3, 4, 2], [4, 0, 2],
+                    [1, 0, 5], [3, 1, 5], [4, 3, 5], [0, 4, 5]])
+    fc = fan_cloud_of_mesh(pts, tri)
+    assert not fc.open.any()
+    with pytest.raises(FanCloudInputError, match="sharp edge or corner.*move=False"):
+        refine(fc, factor=2)
+    assert refine(fc, factor=2, move=False).n_points == 12
+
+
+def test_high_valence_fans_keep_the_scratch_small(monkeypatch):
+    """A round's scratch holds up to width x width ring entries per insertion (width: the
+    largest fan): a pole with 1,000 neighbours asked for 62 GiB. The round is capped by
+    ``ROUND_BYTES``; a cap far below the round's size still refines exactly."""
+    from fancloud_vtk.core import refinement as RF
+
+    n_lon, n_lat = 120, 12  # a UV sphere: its poles have 120 neighbours
+    lon = np.linspace(0, 2 * np.pi, n_lon, endpoint=False)
+    lat = np.linspace(-np.pi / 2, np.pi / 2, n_lat + 2)[1:-1]
+    pts = np.array([[np.cos(a) * np.cos(b), np.sin(a) * np.cos(b), np.sin(b)]
+                    for b in lat for a in lon] + [[0, 0, -1], [0, 0, 1]])
+    south, north = n_lat * n_lon, n_lat * n_lon + 1
+    tri = []
+    for i in range(n_lon):
+        j = (i + 1) % n_lon
+        tri += [[south, j, i], [north, (n_lat - 1) * n_lon + i, (n_lat - 1) * n_lon + j]]
+        for b in range(n_lat - 1):
+            a0, a1, c0, c1 = b * n_lon + i, b * n_lon + j, (b + 1) * n_lon + i, (b + 1) * n_lon + j
+            tri += [[a0, a1, c1], [a0, c1, c0]]
+    fc = fan_cloud_of_mesh(pts, np.array(tri))
+    assert fc.fan_sizes.max() == n_lon and not fc.open.any()
+    width = max(RF.MIN_WIDTH, int(fc.fan_sizes.max()) + 8)
+    sizes = []
+    real = RF._Buffers
+
+    def buffers(cap, w):
+        sizes.append(cap)
+        return real(cap, w)
+
+    monkeypatch.setattr(RF, "_Buffers", buffers)
+    monkeypatch.setattr(RF, "ROUND_BYTES", 4 * width**2 * 5)
+    fine = refine(fc, factor=1.3, move=False)
+    assert sizes == [5]
+    assert fine.n_points == round(1.3 * fc.n_points)
+    fine.validate()

@@ -184,6 +184,13 @@ def as_fan_cloud(data) -> FanCloud:
         data.validate()
         if data.n_points == 0:
             raise ValueError("the fan cloud is empty")
+        length = np.einsum("ij,ij->i", data.normals, data.normals)
+        if not (length > 0.0).all():
+            bad = np.flatnonzero(~(length > 0.0))
+            raise FanCloudInputError(
+                f"the fan cloud has zero normals at {bad.size} point(s), first at index "
+                f"{int(bad[0])}: a fan needs a normal"
+            )
         return data
     if isinstance(data, TriangleMesh):
         return fan_cloud_of_mesh(data.points, data.triangles, normals=data.normals,

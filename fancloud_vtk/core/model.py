@@ -172,7 +172,8 @@ class FanCloud:
         )
 
     def validate(self) -> None:
-        """Check shapes, dtypes and index ranges; raise ``ValueError`` naming the problem.
+        """Check shapes, dtypes, index ranges and that points and normals are finite; raise
+        ``ValueError`` naming the problem.
 
         The names are those of the arrays in VTK (``fan_offsets``,
         ``fan_ring``, ``Normals``, ``fan_open``, ``fan_rotated``).
@@ -217,6 +218,16 @@ class FanCloud:
                 f"Normals must be a float64 array of shape ({n}, 3), "
                 f"got {self.normals.dtype} {self.normals.shape}"
             )
+        for key, arr, what in (("points", p, "coordinates"), ("Normals", self.normals, "values")):
+            finite = np.isfinite(arr).all(axis=1)
+            if not finite.all():
+                from .validation import FanCloudInputError
+
+                bad = np.flatnonzero(~finite)
+                raise FanCloudInputError(
+                    f"fan cloud {key} contain NaN or infinite {what} at {bad.size} point(s), "
+                    f"first at index {int(bad[0])}: {arr[bad[0]].tolist()}"
+                )
         for key in ("fan_open", "fan_rotated"):
             arr = arrays[key]
             if arr.shape != (n,) or arr.dtype != np.bool_:

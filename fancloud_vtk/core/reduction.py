@@ -21,7 +21,7 @@ import os
 
 import numpy as np
 
-from ..io import FileReadError
+from ..io import FileReadError  # VTK-free at import (tests/test_io.py)
 from . import _reduction_kernels as RK
 from ._entropy_kernels import mean_distance
 from .entropy import DEFAULT_WEIGHTS, as_colors, as_fan_cloud, check_weights
@@ -704,6 +704,7 @@ class Hierarchy:
         if not isinstance(base, FanCloud):
             raise TypeError(f"base must be a FanCloud (a level of this hierarchy), got "
                             f"{type(base).__name__}")
+        base.validate()  # edited in place since: finite points and normals still
         ids = base.point_data.get(ORIGINAL_ID)
         if ids is None:
             raise ValueError(f"base has no {ORIGINAL_ID!r} point array: it must be a level of "

@@ -40,6 +40,12 @@ ROUND_FRACTION = 1 / 16
 MIN_GAP = 0.25
 #: the most insertions planned together in one round
 MAX_ROUND = 16384
+#: and at most this many bytes of their re-formed rings (a round's scratch holds up to
+#: ``width`` rings of ``width`` entries per insertion, ``width`` the largest fan + 8: a
+#: vertex with 1,000 neighbours would otherwise ask for 62 GiB)
+ROUND_BYTES = 1 << 28
+#: the rings are int32
+MAX_POINTS = np.iinfo(np.int32).max
 
 
 def refine_target(n: int, n_points=None, factor=None) -> int:
@@ -50,7 +56,10 @@ def refine_target(n: int, n_points=None, factor=None) -> int:
         if isinstance(factor, bool) or not isinstance(factor, numbers.Real) \
                 or not np.isfinite(factor) or not factor > 1:
             raise ValueError(f"factor must be a number > 1, got {factor!r}")
-        return int(round(float(factor) * n))
+        target = round(float(factor) * n)
+        if target > MAX_POINTS:
+            raise ValueError(f"factor {factor!r} asks for {target} points: at most {MAX_POINTS}")
+        return int(target)
     if isinstance(n_points, bool) or not isinstance(n_points, numbers.Integral):
         raise ValueError(f"n_points must be an integer, got {n_points!r}")
     if int(n_points) < n:
@@ -58,6 +67,8 @@ def refine_target(n: int, n_points=None, factor=None) -> int:
             f"n_points ({int(n_points)}) is smaller than the cloud ({n} points): refinement "
             "only adds points (reduce() removes them)"
         )
+    if int(n_points) > MAX_POINTS:
+        raise ValueError(f"n_points ({int(n_points)}) is more than the {MAX_POINTS} supported")
     return int(n_points)
 
 
@@ -96,9 +107,9 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, ring
     points in an order to compute their first entropies in (space order is faster)."""
     n0 = fc.n_points
     m = target - n0
-    round_cap = 0 if exact else min(MAX_ROUND, max(64, m))
-    n_alloc = target + round_cap
     width = max(MIN_WIDTH, int(fc.fan_sizes.max(initial=0)) + 8)
+    round_cap = 0 if exact else max(1, min(MAX_ROUND, max(64, m), ROUND_BYTES // (4 * width**2)))
+    n_alloc = target + round_cap
     pts = np.zeros((n_alloc, 3))
     pts[:n0] = fc.points
     nrm = np.zeros((n_alloc, 3))
@@ -175,10 +186,14 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, ring
                              FK.changed_of(final, xlist, n_xs, stamp, tag))
             _report(progress, (n_cur - n0) / max(m, 1), "refinement")
     if n_cur < target:
-        raise FanCloudInputError(
-            f"the refinement stopped at {n_cur} points (asked for {target}): no closed fan is "
-            "left where a point can be inserted"
-        )
+        why = (f"the refinement stopped at {n_cur} points (asked for {target}): every closed "
+               "fan left refused its insertion (a new point would be closer to a neighbour "
+               f"than {MIN_GAP} of the mean spacing, or its fan would not change p's")
+        if move:
+            why += (f"; or the parents' normals are more than {FK.SHARP_ANGLE:g} degrees apart, "
+                    "at a sharp edge or corner, where the mean-curvature move does not apply: "
+                    "move=False inserts there, or refine a finer sampling")
+        raise FanCloudInputError(why + ")")
     return pts[:target], nrm[:target], R[:target], rlen[:target], ropen[:target], log
 
 
@@ -203,15 +218,18 @@ class _Buffers:
                 self.xlen[:k], self.xopen[:k], self.n_xs[:k], self.par[:k], self.wts[:k])
 
 
-def _point_data(point_data: dict, n0: int, par: np.ndarray, wts: np.ndarray) -> dict:
+def _point_data(point_data: dict, n0: int, par: np.ndarray, wts: np.ndarray,
+                color_name=None) -> dict:
     """The input's point arrays extended to the inserted points.
 
-    Float arrays and the colour array are the parents' weighted combination
-    (a uint8 colour rounded); other arrays (integers, labels, bools) take
-    p's value; ``original_id`` is -1 (no input point).
+    Float arrays and the colour array (``color_name``, default: the one of
+    the usual names) are the parents' weighted combination (a uint8 colour
+    rounded); other arrays (integers, labels, bools) take p's value;
+    ``original_id`` is -1 (no input point).
     """
     m = len(par)
-    color_name = find_color_array(point_data)
+    if color_name is None:
+        color_name = find_color_array(point_data)
     out = {}
     for key, v in point_data.items():
         v = np.asarray(v)
@@ -269,7 +287,10 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
         Entropy weights (see :func:`~fancloud_vtk.entropy`); they decide
         where points go and how the parents are weighted.
     colors : None, str or numpy.ndarray, optional
-        Colours for the colour term (default: the input's colour array).
+        Colours for the colour term (default: the input's colour array of
+        the usual names, RGB, RGBA, Colors, ...). A name also makes that
+        point array the colour array of the result (combined like floats,
+        rounded if it is integer).
     move : bool, default: True
         Move the new points along their normals by the mean curvature.
         False leaves them at the weighted combination (inside the triangle
@@ -347,7 +368,7 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     if not ok:
         raise RuntimeError("internal error: a refined fan refers to a point that is not there")
     par, wts = log.par, log.wts
-    pdata = _point_data(fc.point_data, n0, par, wts)
+    pdata = _point_data(fc.point_data, n0, par, wts, colors if isinstance(colors, str) else None)
     if ORIGINAL_ID not in pdata:
         pdata[ORIGINAL_ID] = np.concatenate([np.arange(n0, dtype=np.int64),
                                              np.full(m, -1, np.int64)])
