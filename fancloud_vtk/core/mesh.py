@@ -319,9 +319,9 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
     n = fc.n_points
     closed = inserted = 0
     widened = np.zeros(n, bool)  # around holes that were widened: any size goes
-    # the state after a round's fills with the largest area: a widened hole that the retries
-    # do not close leaves less, and the widening is then undone
-    best = (-1.0, triangles, 0, 0)
+    # of the states before a widening, the one with the largest area: a widened hole that
+    # the retries do not close leaves less, and the widening is then undone
+    best = None
     for last in range(rounds - 1, -1, -1):
         vt_off, vt = MK.vertex_triangles(triangles, n)
         loop_off, loop_verts = MK.boundary_loops_manifold(triangles, vt_off, vt, n)
@@ -390,11 +390,11 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
         new = [t for t in new if len(t)]
         if new:
             triangles = np.vstack([triangles, *new])
-        area = _area(fc.points, triangles)
-        if area >= best[0]:
-            best = (area, triangles, closed, inserted)
         if not failed or last == 0:
             break
+        area = _area(fc.points, triangles)  # only where a widening follows
+        if best is None or area >= best[0]:
+            best = (area, triangles, closed, inserted)
         # widen the holes that failed by the triangles around them, and retry
         around = np.zeros(n, bool)
         around[np.concatenate(failed)] = True
@@ -404,7 +404,7 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
         keep = np.ones(len(triangles), bool)
         MK.split_pinched(triangles, keep, n)
         triangles = triangles[keep]
-    if not widened.any() or _area(fc.points, triangles) >= best[0]:
+    if best is None or _area(fc.points, triangles) >= best[0]:
         return triangles, closed, inserted
     vt_off, vt = MK.vertex_triangles(triangles, n)
     loop_off, loop_verts = MK.boundary_loops_manifold(triangles, vt_off, vt, n)

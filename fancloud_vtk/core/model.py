@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .validation import check_finite
+
 #: Point-data names that may hold a colour array, in order of preference.
 COLOR_NAMES = ("RGB", "RGBA", "Colors", "colors", "Colours", "colours", "rgb", "rgba")
 
@@ -218,16 +220,8 @@ class FanCloud:
                 f"Normals must be a float64 array of shape ({n}, 3), "
                 f"got {self.normals.dtype} {self.normals.shape}"
             )
-        for key, arr, what in (("points", p, "coordinates"), ("Normals", self.normals, "values")):
-            finite = np.isfinite(arr).all(axis=1)
-            if not finite.all():
-                from .validation import FanCloudInputError
-
-                bad = np.flatnonzero(~finite)
-                raise FanCloudInputError(
-                    f"fan cloud {key} contain NaN or infinite {what} at {bad.size} point(s), "
-                    f"first at index {int(bad[0])}: {arr[bad[0]].tolist()}"
-                )
+        check_finite(p, "fan cloud points")
+        check_finite(self.normals, "fan cloud Normals", "values")
         for key in ("fan_open", "fan_rotated"):
             arr = arrays[key]
             if arr.shape != (n,) or arr.dtype != np.bool_:

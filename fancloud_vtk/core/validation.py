@@ -35,14 +35,20 @@ def as_points(points, *, name: str = "points") -> np.ndarray:
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise FanCloudInputError(f"{name} must have shape (n, 3), got {arr.shape}")
     out = np.array(arr, dtype=np.float64, order="C", copy=True)
-    finite = np.isfinite(out).all(axis=1)
+    check_finite(out, name)
+    return out
+
+
+def check_finite(arr: np.ndarray, name: str, what: str = "coordinates") -> None:
+    """Raise :class:`FanCloudInputError` naming the first row of the ``(n, k)`` array
+    ``arr`` with a NaN or infinite value."""
+    finite = np.isfinite(arr).all(axis=1)
     if not finite.all():
         bad = np.flatnonzero(~finite)
         raise FanCloudInputError(
-            f"{name} contain NaN or infinite coordinates at {bad.size} point(s), "
+            f"{name} contain NaN or infinite {what} at {bad.size} point(s), "
             f"first at index {int(bad[0])}: {arr[bad[0]].tolist()}"
         )
-    return out
 
 
 def as_normals(normals, n: int, *, name: str = "normals") -> np.ndarray:
