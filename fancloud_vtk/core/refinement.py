@@ -283,9 +283,13 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     factor : float, optional
         Instead of ``n_points``: the result has ``round(factor * n)`` points;
         > 1.
-    weights : sequence of 4 float, default: (1, 1, 50, 0)
+    weights : sequence of 4 float, default: (1, 1, 0, 0)
         Entropy weights (see :func:`~fancloud_vtk.entropy`); they decide
-        where points go and how the parents are weighted.
+        where points go and how the parents are weighted. The default has
+        no curvature-change term: it divides the curvature's noise by the
+        distance, so an insertion next to a point would raise that point's
+        entropy instead of lowering it, and the insertions would pile up
+        (docs/refinement.md).
     colors : None, str or numpy.ndarray, optional
         Colours for the colour term (default: the input's colour array of
         the usual names, RGB, RGBA, Colors, ...). A name also makes that
