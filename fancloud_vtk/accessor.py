@@ -39,6 +39,14 @@ from fancloud_vtk.params import (
 )
 
 
+def _one_amount(params: dict, other: str) -> None:
+    """Refuse ``n_points`` together with ``keep``/``factor``: the filters would take
+    ``n_points`` and drop the other silently."""
+    if params.get("n_points") and other in params:
+        raise ValueError(f"give n_points or {other}, not both (got n_points="
+                         f"{params['n_points']!r} and {other}={params[other]!r})")
+
+
 def _point_set(dataset):
     """The dataset itself if it is a ``vtkPointSet``, else its points and point arrays.
 
@@ -301,8 +309,15 @@ class FanCloudAccessor:
         pyvista.PolyData
             A new fan cloud (with ``mesh=True``: its triangle mesh) of the
             kept points, with their point arrays, ``original_id`` (the index
-            of each point in the input) and the field array
-            ``fancloud_input``.
+            of each point in the first input of a chain of reductions: an
+            input's own ``original_id`` is composed, not replaced) and the
+            field array ``fancloud_input``.
+
+        Raises
+        ------
+        ValueError
+            ``n_points`` together with ``keep``; a count or fraction out of
+            range, bad weights, method or colour array.
 
         See Also
         --------
@@ -319,6 +334,7 @@ class FanCloudAccessor:
         True
         >>> small.plot(smooth_shading=True)  # doctest: +SKIP
         """
+        _one_amount(params, "keep")
         values = check_params(FAN_PARAMS + REDUCE_PARAMS, params)
         return _run(FanCloudReduceFilter(**values), self._dataset, progress_bar, "Reducing")
 
@@ -345,6 +361,14 @@ class FanCloudAccessor:
             first parent), ``original_id`` (-1 on inserted points) and the
             field array ``fancloud_input``.
 
+        Raises
+        ------
+        ValueError
+            ``n_points`` together with ``factor``; ``factor`` <= 1 or
+            ``n_points`` below the input's count; bad weights or colour
+            array; no closed fan to refine from
+            (:class:`~fancloud_vtk.FanCloudInputError`).
+
         See Also
         --------
         fancloud_vtk.refine : the same on a FanCloud or TriangleMesh.
@@ -362,6 +386,7 @@ class FanCloudAccessor:
         True
         >>> fine.plot(smooth_shading=True)  # doctest: +SKIP
         """
+        _one_amount(params, "factor")
         values = check_params(FAN_PARAMS + REFINE_PARAMS, params)
         return _run(FanCloudRefineFilter(**values), self._dataset, progress_bar, "Refining")
 
@@ -449,13 +474,18 @@ class FanCloudAccessor:
             ``level(m)`` gives the fan cloud of any level (a
             :class:`~fancloud_vtk.FanCloud`; ``pv.wrap(fc.to_vtk())`` for
             PyVista), ``level(m, base=edited)`` refines an edited level,
-            ``selective(region)`` refines a region of interest.
+            ``selective(region)`` refines a region of interest. Its
+            attribute ``fancloud_input`` says which kind of input it took
+            (``'fan cloud'``, ``'triangle mesh'`` or ``'point set'``, as
+            the field array of the other verbs; not saved by ``save``).
 
         Examples
         --------
         >>> import pyvista as pv
         >>> from fancloud_vtk.data import bunny_path
         >>> h = pv.read(bunny_path()).fancloud.hierarchy(2000)
+        >>> h.fancloud_input
+        'triangle mesh'
         >>> coarse = pv.wrap(h.level(2000).to_vtk())
         >>> coarse.n_points
         2000
@@ -465,6 +495,8 @@ class FanCloudAccessor:
         fan_values = check_params(FAN_PARAMS, fan_params)
         check_params(REDUCE_PARAMS, {"weights": weights, "method": method,
                                      "color_array": color_array, "exact": exact})
-        fc, _ = input_fan_cloud(_point_set(self._dataset), fan_values)
-        return hierarchy(fc, n_points, weights=weights, method=method,
-                         colors=color_array or None, exact=exact)
+        fc, kind = input_fan_cloud(_point_set(self._dataset), fan_values)
+        h = hierarchy(fc, n_points, weights=weights, method=method,
+                      colors=color_array or None, exact=exact)
+        h.fancloud_input = kind
+        return h

@@ -79,6 +79,9 @@ def test_reduce_to_mesh_and_hierarchy(points):
     assert "mesh_final" in mesh.field_data
     h = cloud.fancloud.hierarchy(300, weights=(1, 0, 0, 0))
     assert isinstance(h, Hierarchy) and h.n_min == 300
+    assert h.fancloud_input == "point set"
+    fans = _kinds(points)["fan cloud"]
+    assert fans.fancloud.hierarchy(2000).fancloud_input == "fan cloud"
     assert h.level(1000).n_points == 1000
 
 
@@ -92,6 +95,9 @@ def test_accessor_checks_keywords(points):
         cloud.fancloud.reduce(weights=(1, 1, 50))
     with pytest.raises(ValueError, match="larger"):
         cloud.fancloud.reduce(n_points=10**6)
+    with pytest.raises(ValueError, match="n_points or keep, not both"):
+        cloud.fancloud.reduce(n_points=100, keep=0.9)
+    assert cloud.fancloud.reduce(n_points=0, keep=0.5).n_points == 1500  # 0: not given
     with pytest.raises(ValueError, match="no colours|no point array"):
         pv.PolyData(points[0]).fancloud.entropy(weights=(1, 1, 50, 1))
 

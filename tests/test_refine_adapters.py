@@ -82,6 +82,8 @@ def test_accessor_checks_keywords(points):
         cloud.fancloud.refine(keep=0.5)
     with pytest.raises(ValueError, match="factor"):
         cloud.fancloud.refine(factor=1.0)
+    with pytest.raises(ValueError, match="n_points or factor, not both"):
+        cloud.fancloud.refine(n_points=1000, factor=3.0)
 
 
 def test_cli_refine(points, tmp_path, capsys):
