@@ -10,6 +10,10 @@
     Reduction by entropy to an exact number of points (paper section 5).
 ``fancloud refine IN -o OUT (--factor F | --n N) [--weights ...] [--mesh]``
     Refinement beyond the input resolution (paper section 7).
+``fancloud selective IN -o OUT.vtp (--keep F | --n N) --region-center X,Y,Z --region-radius R``
+    Reduce, smooth the coarse level (``--smooth-iterations S``) and reinsert only
+    the points of a region of interest (a sphere, or ``--region box
+    --region-bounds ...``; paper section 6, Figure 11).
 ``fancloud vdfc IN (--camera C -o frame.png|front.vtp | --flythrough DIR) [--e-max E]``
     The view-dependent fan cloud (paper section 8): its front for a camera, or
     a fly-through with per-frame front sizes and update times.
@@ -35,10 +39,16 @@ from fancloud_vtk.params import (
     MESH_PARAMS,
     REDUCE_PARAMS,
     REFINE_PARAMS,
+    SELECTIVE_PARAMS,
     VDFC_PARAMS,
     Param,
     check_params,
 )
+
+#: ``fancloud selective``: the reduction's options but the amount (--keep | --n) and --mesh,
+#: then the region's
+SELECTIVE_OPTIONS = tuple(p for p in REDUCE_PARAMS if p.name not in ("keep", "n_points", "mesh")) \
+    + SELECTIVE_PARAMS
 
 
 def _vector(size: int):
@@ -294,12 +304,35 @@ def cmd_refine(args) -> int:
     return _fan_cloud_verb(args, "refine", "refinement", call, rows)
 
 
+def cmd_selective(args) -> int:
+    from fancloud_vtk.algorithms.reduce import region_of, selective_refinement
+
+    if args.n_points is None and args.keep is None:
+        raise ValueError("give --keep F (a fraction) or --n N (a count)")
+    values = _params(args, FAN_PARAMS + SELECTIVE_OPTIONS)
+    values.update(n_points=args.n_points or 0, keep=args.keep)
+    region_of(values)  # a bad region fails before the input is read
+
+    def call(fc, progress):
+        return selective_refinement(fc, values, progress)
+
+    def rows(fc, out):
+        added = out.info["reinserted"]
+        return [("coarse level", f"{out.n_points - added:,} points"),
+                ("smoothing steps", str(args.smooth_iterations)),
+                ("reinserted in the region", f"{added:,}"),
+                ("result", f"{out.n_points:,} points")]
+
+    return _fan_cloud_verb(args, "selective", "selective refinement", call, rows)
+
+
 def _fan_cloud_verb(args, name: str, stage: str, call, describe) -> int:
     """Read the input as a fan cloud, run ``call(fc, progress)``, save the result (its mesh
     with ``--mesh``) and print the summary: the input, ``describe(fc, result)``, the times."""
     from fancloud_vtk.algorithms.convert import MESH_FORMATS, mesh_to_vtk, write_mesh
 
-    _check_output(args.output, MESH_FORMATS if args.mesh else ".vtp")
+    as_mesh = getattr(args, "mesh", False)
+    _check_output(args.output, MESH_FORMATS if as_mesh else ".vtp")
     t0 = time.perf_counter()
     fc, kind = _load_any(args.input, _params(args, FAN_PARAMS), args.quiet)
     t1 = time.perf_counter()
@@ -311,7 +344,7 @@ def _fan_cloud_verb(args, name: str, stage: str, call, describe) -> int:
     t2 = time.perf_counter()
     rows = [("input", f"{kind}, {fc.n_points:,} points"), *describe(fc, out),
             ("time: read and fans", f"{t1 - t0:.2f} s"), (f"time: {stage}", f"{t2 - t1:.2f} s")]
-    if args.mesh:
+    if as_mesh:
         from fancloud_vtk.algorithms.reduce import mesh_rings
         from fancloud_vtk.core.mesh import fan_cloud_to_mesh
 
@@ -540,6 +573,19 @@ def make_parser() -> argparse.ArgumentParser:
                                       if x.name not in ("factor", "n_points")))
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_refine)
+
+    p = sub.add_parser("selective", help="reduce, smooth the coarse level, refine only a region "
+                                         "of interest (Figure 11)")
+    p.add_argument("input", help="a fan cloud .vtp, a mesh file (one-rings) or a point cloud")
+    p.add_argument("-o", "--output", required=True, help="output fan cloud (.vtp)")
+    amount = p.add_mutually_exclusive_group(required=True)
+    amount.add_argument("--keep", type=float, default=None,
+                        help="fraction of points in the coarse level")
+    amount.add_argument("--n", "--n-points", dest="n_points", type=int, default=None,
+                        help="number of points in the coarse level")
+    _add_params(p, FAN_PARAMS + SELECTIVE_OPTIONS)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
+    p.set_defaults(func=cmd_selective)
 
     p = sub.add_parser("vdfc", help="view-dependent fan cloud: the front for a camera, or a "
                                     "fly-through (paper section 8)")

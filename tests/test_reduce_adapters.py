@@ -135,6 +135,19 @@ def test_selective_filter(points):
         run(sel)
 
 
+def test_selective_filter_builds_its_fans_with_its_fan_parameters(points):
+    p, _ = points
+    sizes = {}
+    for k in (6, 10):
+        sel = FanCloudSelectiveRefineFilter(k=k, keep=0.3, region_center=(0, 0, 1),
+                                            region_radius=0.5)
+        sel.SetInputDataObject(0, pv.PolyData(p))
+        fc = fancloud_from_vtk(run(sel))
+        sizes[k] = fc.fan_sizes[~fc.open].mean()
+    assert sizes[6] == pytest.approx(6, abs=0.3)
+    assert sizes[10] > 9  # not the default k=6 of Hierarchy.selective
+
+
 def test_cli_reduce_and_entropy(points, tmp_path, capsys):
     p, rgb = points
     fc = build_fans(p, point_data={"RGB": rgb})
@@ -153,6 +166,33 @@ def test_cli_reduce_and_entropy(points, tmp_path, capsys):
     ent = tmp_path / "ent.vtp"
     assert main(["entropy", str(out), "-o", str(ent), "-q"]) == 0
     assert "entropy_cc" in pv.read(ent).point_data
+
+
+def test_cli_selective_is_the_filter(points, tmp_path, capsys):
+    p, rgb = points
+    src = tmp_path / "in.vtp"
+    build_fans(p, point_data={"RGB": rgb}).save(src)
+    out = tmp_path / "sel.vtp"
+    region = {"keep": 0.2, "region_center": (0, 0, 1), "region_radius": 0.6,
+              "smooth_iterations": 1}
+    assert main(["selective", str(src), "-o", str(out), "--keep", "0.2", "--region-center",
+                 "0,0,1", "--region-radius", "0.6", "--smooth-iterations", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert "fan cloud, 3,000 points" in printed and "reinserted in the region" in printed
+    got = pv.read(out)
+    sel = FanCloudSelectiveRefineFilter(**region)
+    sel.SetInputDataObject(0, pv.read(src))
+    ref = pv.wrap(run(sel))
+    np.testing.assert_array_equal(got["original_id"], ref["original_id"])
+    np.testing.assert_array_equal(got.points, ref.points)
+    np.testing.assert_array_equal(got["RGB"], ref["RGB"])
+    assert 600 < got.n_points < 3000
+    # a bad region is refused before anything is read
+    code = main(["selective", str(tmp_path / "missing.vtp"), "-o", str(out), "--n", "500"])
+    assert code == 2 and "region_radius must be > 0" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["selective", str(src), "-o", str(out), "--region-radius", "1"])  # no amount
+    assert "--keep" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(

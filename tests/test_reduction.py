@@ -150,8 +150,22 @@ def test_selective_reinserts_exactly_the_region(sphere_fans):
         got = h.selective(region)
         np.testing.assert_array_equal(np.sort(got.point_data["original_id"]), expected)
     box = h.selective((-2, 2, -2, 2, 0.9, 2))
-    assert np.all(box.points[box.n_points - 1 :, 2] > -2)
-    assert box.n_points > 600
+    in_box = sphere_fans.points[removed, 2] >= 0.9
+    assert in_box.any()
+    expected = np.union1d(h.level(600).point_data["original_id"], removed[in_box])
+    np.testing.assert_array_equal(np.sort(box.point_data["original_id"]), expected)
+
+
+def test_selective_builds_the_results_fans_with_the_fan_parameters_given(sphere_fans):
+    h = hierarchy(sphere_fans, 600)
+    region = (np.array([0.0, 0.0, 1.0]), 0.5)
+    default = h.selective(region)
+    wide = h.selective(region, k=10, max_angle=120.0)
+    np.testing.assert_array_equal(wide.points, default.points)
+    assert default.fan_sizes.mean() == pytest.approx(6, abs=0.3)
+    assert wide.fan_sizes.mean() > 9
+    with pytest.raises(TypeError, match="normals"):
+        h.selective(region, normals=np.zeros((4000, 3)))
 
 
 def test_selective_on_an_edited_level(sphere_fans):

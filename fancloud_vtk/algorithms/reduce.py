@@ -91,6 +91,36 @@ def fan_cloud_output(alg: FanCloudAlgorithm, fc, kind: str, mesh: bool):
     return out
 
 
+def region_of(values: dict):
+    """The region of interest of the selective refinement's values (a ``(center, radius)``
+    sphere or box bounds) for :meth:`~fancloud_vtk.Hierarchy.selective`."""
+    if values["region"] == "sphere":
+        if not values["region_radius"] > 0:
+            raise ValueError("region_radius must be > 0 for a sphere region of interest")
+        return values["region_center"], values["region_radius"]
+    b = values["region_bounds"]
+    if b[0] > b[1] or b[2] > b[3] or b[4] > b[5]:
+        raise ValueError(f"region_bounds must be (xmin, xmax, ymin, ymax, zmin, zmax) "
+                         f"with min <= max, got {b}")
+    return np.array(b, np.float64)
+
+
+def selective_refinement(fc, values: dict, progress=None):
+    """Figure 11 on a fan cloud, from the values of ``FAN_PARAMS + REDUCE_PARAMS`` (but
+    ``mesh``) ``+ SELECTIVE_PARAMS``: the hierarchy down to ``n_points``/``keep``, its coarsest
+    level smoothed ``smooth_iterations`` times, the removed points inside the region
+    reinserted (fans built with the fan parameters). The filter and ``fancloud selective``
+    call it."""
+    region = region_of(values)
+    target = target_count(fc.n_points, **_amount(values))
+    h = hierarchy(fc, target, **_reduce_values(values),
+                  progress=None if progress is None else lambda f, m: progress(0.9 * f, m))
+    coarse = h.level(target)
+    if values["smooth_iterations"]:
+        coarse = laplacian_smooth(coarse, values["smooth_iterations"])
+    return h.selective(region, base=coarse, **fan_values(values))
+
+
 @with_parameters(FAN_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS)
 class FanCloudSelectiveRefineFilter(FanCloudAlgorithm):
     """Reduce, optionally smooth the coarse level, then refine only a region (Figure 11).
@@ -101,7 +131,8 @@ class FanCloudSelectiveRefineFilter(FanCloudAlgorithm):
     point is put back on the (smoothed) surface by its local-frame detail,
     in reverse removal order, and those inside the region of interest (a
     sphere ``region_center``/``region_radius`` or a box ``region_bounds``)
-    are reinserted. The output is the resulting fan cloud with
+    are reinserted. The output is the resulting fan cloud, its fans built
+    anew with this filter's fan parameters (``k``, ``max_angle``, ...), with
     ``original_id``.
 
     Examples
@@ -124,25 +155,11 @@ class FanCloudSelectiveRefineFilter(FanCloudAlgorithm):
 
     def execute(self, dataset):
         values = self.parameters
-        if values["region"] == "sphere":
-            if not values["region_radius"] > 0:
-                raise ValueError("region_radius must be > 0 for a sphere region of interest")
-            region = (values["region_center"], values["region_radius"])
-        else:
-            b = values["region_bounds"]
-            if b[0] > b[1] or b[2] > b[3] or b[4] > b[5]:
-                raise ValueError(f"region_bounds must be (xmin, xmax, ymin, ymax, zmin, zmax) "
-                                 f"with min <= max, got {b}")
-            region = np.array(b, np.float64)
+        region_of(values)  # a bad region fails before the fans are built
         fc, kind = input_fan_cloud(dataset, fan_values(values),
                                    lambda f, m: self._progress(0.3 * f, m))
-        target = target_count(fc.n_points, **_amount(values))
-        h = hierarchy(fc, target, **_reduce_values(values),
-                      progress=lambda f, m: self._progress(0.3 + 0.6 * f, m))
-        coarse = h.level(target)
-        if values["smooth_iterations"]:
-            coarse = laplacian_smooth(coarse, values["smooth_iterations"])
-        out = fancloud_to_vtk(h.selective(region, base=coarse))
+        out = fancloud_to_vtk(selective_refinement(
+            fc, values, lambda f, m: self._progress(0.3 + 0.7 * f, m)))
         add_string_field(out, INPUT_KIND, kind)
         self._progress(1.0, "done")
         return out

@@ -806,7 +806,7 @@ class Hierarchy:
         return _level_of(pts, nrm, self.source.point_data, self.original_id,
                          self.source.rotated, ids, offsets, ring, ropen)
 
-    def selective(self, region, base=None, start=None, *, k: int = 6) -> FanCloud:
+    def selective(self, region, base=None, start=None, *, k: int = 6, **fan_params) -> FanCloud:
         """Refine only a region of interest (paper section 6, Figure 11).
 
         All removed points are updated in reverse removal order (placed by
@@ -828,6 +828,10 @@ class Hierarchy:
         k : int, default: 6
             Neighbours per fan of the result, whose fans are built anew
             (its mixed resolution is no level of the hierarchy).
+        **fan_params
+            The other parameters of :func:`~fancloud_vtk.build_fans` for
+            those fans (``max_angle``, ``rule``, ...); not ``normals`` or
+            ``point_data``, which come from the hierarchy.
 
         Returns
         -------
@@ -842,6 +846,21 @@ class Hierarchy:
             the wrong shape; a sphere with a radius <= 0 or a NaN or infinite
             centre or radius; box bounds with a NaN or a min > max (infinite
             bounds are allowed: an open box); both ``base`` and ``start``.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from fancloud_vtk import build_fans, hierarchy
+        >>> rng = np.random.default_rng(0)
+        >>> p = rng.normal(size=(2000, 3))
+        >>> p /= np.linalg.norm(p, axis=1)[:, None]
+        >>> h = hierarchy(build_fans(p), 300)
+        >>> top = h.selective(([0.0, 0.0, 1.0], 0.5))  # a sphere region around the pole
+        >>> inside = np.linalg.norm(p - [0, 0, 1], axis=1) <= 0.5
+        >>> bool(np.isin(np.flatnonzero(inside), top.point_data["original_id"]).all())
+        True
+        >>> top.n_points == 300 + top.info["reinserted"]
+        True
         """
         from .fans import build_fans
 
@@ -863,7 +882,10 @@ class Hierarchy:
         ids = np.flatnonzero(active)
         pdata = {key: v[ids] for key, v in self.source.point_data.items()}
         pdata[ORIGINAL_ID] = self.original_id[ids]
-        out = build_fans(pts[ids], k, normals=nrm[ids], point_data=pdata)
+        for name in ("normals", "point_data"):
+            if name in fan_params:
+                raise TypeError(f"selective() takes no {name}=: they come from the hierarchy")
+        out = build_fans(pts[ids], k, normals=nrm[ids], point_data=pdata, **fan_params)
         out.info["reinserted"] = int(inside.sum())
         return out
 
