@@ -139,6 +139,79 @@ def _finish(
     )
 
 
+#: VTK's linear surface cells (vtkCellType.h): the cells a mesh file's triangles come from
+VTK_TRIANGLE, VTK_TRIANGLE_STRIP, VTK_POLYGON, VTK_PIXEL, VTK_QUAD = 5, 6, 7, 8, 9
+
+
+def _csr_subset(offsets: np.ndarray, connectivity: np.ndarray, keep: np.ndarray):
+    """The cells ``keep`` (a bool mask) of a CSR cell array: (offsets, connectivity)."""
+    starts = offsets[:-1][keep]
+    sizes = offsets[1:][keep] - starts
+    new = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    idx = np.repeat(starts - new[:-1], sizes) + np.arange(new[-1], dtype=np.int64)
+    return new, connectivity[idx]
+
+
+def _strip_triangulate(offsets: np.ndarray, connectivity: np.ndarray) -> np.ndarray:
+    """Triangle strips ``(v0, v1, v2, v3, ...)`` as triangles ``(v0, v1, v2)``,
+    ``(v2, v1, v3)``, ...: every other one turned so that all keep the first one's
+    orientation (as VTK decomposes a strip)."""
+    sizes = np.diff(offsets)
+    ntri = np.maximum(sizes - 2, 0)
+    total = int(ntri.sum())
+    strip = np.repeat(np.arange(sizes.size), ntri)
+    local = np.arange(total, dtype=np.int64) - (np.cumsum(ntri) - ntri)[strip]
+    first = offsets[:-1][strip] + local
+    a, b, c = connectivity[first], connectivity[first + 1], connectivity[first + 2]
+    odd = local % 2 == 1
+    return np.stack([np.where(odd, b, a), np.where(odd, a, b), c], axis=1)
+
+
+def cell_triangles(offsets, connectivity, types) -> np.ndarray:
+    """The triangles of the surface cells of a VTK cell array, ``(t, 3)`` int64.
+
+    Triangles, quads and polygons are fan-triangulated, pixels taken in
+    their counter-clockwise order (0, 1, 3, 2), triangle strips decomposed as
+    VTK does; other cells (vertices, lines, volume cells) give none.
+    ``offsets``/``connectivity``: the cell array in CSR form (VTK 9's
+    ``GetOffsetsArray``/``GetConnectivityArray``), ``types`` the cell types.
+    """
+    offsets = np.asarray(offsets, dtype=np.int64)
+    conn = np.asarray(connectivity, dtype=np.int64)
+    types = np.asarray(types)
+    parts = [np.zeros((0, 3), np.int64)]
+    polygons = np.isin(types, (VTK_TRIANGLE, VTK_POLYGON, VTK_QUAD))
+    if polygons.any():
+        parts.append(_fan_triangulate(*_csr_subset(offsets, conn, polygons)))
+    pixels = (types == VTK_PIXEL) & (np.diff(offsets) == 4)
+    if pixels.any():
+        off, quads = _csr_subset(offsets, conn, pixels)
+        parts.append(_fan_triangulate(off, quads.reshape(-1, 4)[:, [0, 1, 3, 2]].ravel()))
+    strips = types == VTK_TRIANGLE_STRIP
+    if strips.any():
+        parts.append(_strip_triangulate(*_csr_subset(offsets, conn, strips)))
+    return np.concatenate(parts)
+
+
+def grid_triangles(grid) -> np.ndarray:
+    """The triangles of the 2-d cells of a ``vtkUnstructuredGrid`` (:func:`cell_triangles`),
+    ``(t, 3)`` int64, empty if it has none."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+    from vtkmodules.vtkCommonCore import vtkUnsignedCharArray
+
+    if grid.GetNumberOfCells() == 0:
+        return np.zeros((0, 3), np.int64)
+    try:
+        types = grid.GetCellTypes()  # VTK >= 9.6: the per-cell types
+    except TypeError:  # before: GetCellTypes(vtkCellTypes) fills a summary
+        types = grid.GetCellTypesArray()
+    plain = vtkUnsignedCharArray()  # whatever array class VTK returns
+    plain.DeepCopy(types)
+    cells = grid.GetCells()
+    return cell_triangles(vtk_to_numpy(cells.GetOffsetsArray()),
+                          vtk_to_numpy(cells.GetConnectivityArray()), vtk_to_numpy(plain))
+
+
 def _fan_triangulate(offsets: np.ndarray, connectivity: np.ndarray) -> np.ndarray:
     """Fan-triangulate polygons given CSR ``offsets`` (m + 1) and flat ``connectivity``.
 
@@ -785,11 +858,16 @@ def _read_vtk_format(path: str, fmt: str) -> PointCloudFile:
 
     faces = None
     poly = vtkPolyData.SafeDownCast(out)
-    if poly is not None and poly.GetNumberOfPolys() > 0:
-        cells = poly.GetPolys()
-        offsets = vtk_to_numpy(cells.GetOffsetsArray())
-        conn = vtk_to_numpy(cells.GetConnectivityArray())
-        faces = _fan_triangulate(offsets, conn)
+    if poly is not None:
+        parts = []
+        for cells, kind in ((poly.GetPolys(), VTK_POLYGON), (poly.GetStrips(), VTK_TRIANGLE_STRIP)):
+            if cells.GetNumberOfCells():
+                parts.append(cell_triangles(vtk_to_numpy(cells.GetOffsetsArray()),
+                                            vtk_to_numpy(cells.GetConnectivityArray()),
+                                            np.full(cells.GetNumberOfCells(), kind)))
+        faces = np.concatenate(parts) if parts else None
+    elif out.IsA("vtkUnstructuredGrid"):
+        faces = grid_triangles(out)
     return _finish(path, points, point_data, faces)
 
 

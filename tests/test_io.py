@@ -890,3 +890,33 @@ def test_module_imports_neither_pyvista_nor_vtk_eagerly():
         "assert not bad, bad\n"
     )
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_cell_triangles_of_every_surface_cell_kind():
+    from fancloud_vtk.io import cell_triangles
+
+    # a triangle, a quad, a pixel, a pentagon, a strip of five points, a line, a tetrahedron
+    offsets = [0, 3, 7, 11, 16, 21, 23, 27]
+    conn = [0, 1, 2, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 0, 1, 2, 3, 4, 0, 1, 0, 1, 2, 3]
+    types = np.array([5, 9, 8, 7, 6, 3, 10], np.uint8)
+    expected = [[0, 1, 2], [0, 1, 2], [0, 2, 3], [0, 1, 2], [0, 2, 3], [0, 3, 4],  # fans
+                [0, 1, 3], [0, 3, 2],  # the pixel, counter-clockwise
+                [0, 1, 2], [2, 1, 3], [2, 3, 4]]  # the strip, one orientation
+    np.testing.assert_array_equal(cell_triangles(offsets, conn, types), expected)
+    assert cell_triangles([0, 2, 6], [0, 1, 0, 1, 2, 3], [3, 10]).shape == (0, 3)
+
+
+@pytest.mark.parametrize("cast", ["pixels", "triangles"])
+def test_vtu_surface_cells_are_the_files_faces(tmp_path, cast):
+    import pyvista as pv
+
+    grid = pv.ImageData(dimensions=(6, 5, 1)).cast_to_unstructured_grid()  # pixels
+    if cast == "triangles":  # the same points as a triangle mesh facing +z
+        grid = pv.Plane(i_resolution=5, j_resolution=4).triangulate().cast_to_unstructured_grid()
+    path = tmp_path / "surface.vtu"
+    grid.save(path)
+    src = read_point_cloud(str(path))
+    assert src.faces.shape == (2 * 5 * 4, 3)
+    p = src.points[src.faces]
+    normal_z = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])[:, 2]
+    assert np.all(normal_z > 0)  # every triangle turns the same way

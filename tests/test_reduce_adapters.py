@@ -51,6 +51,22 @@ def test_reduce_takes_three_kinds_and_says_which(points, kind):
     assert out.fancloud.is_fan_cloud
 
 
+def test_a_triangle_mesh_as_an_unstructured_grid_is_a_mesh(points, tmp_path):
+    mesh = _kinds(points)["triangle mesh"]
+    grid = mesh.cast_to_unstructured_grid()
+    ref = mesh.fancloud.reduce(n_points=700)
+    out = grid.fancloud.reduce(n_points=700)
+    assert out["fancloud_input"][0] == "triangle mesh"
+    np.testing.assert_array_equal(out["original_id"], ref["original_id"])
+    assert grid.fancloud.entropy()["fancloud_input"][0] == "triangle mesh"
+    # the same from a .vtu file through the command
+    path = tmp_path / "mesh.vtu"
+    grid.save(path)
+    assert main(["reduce", str(path), "-o", str(tmp_path / "o.vtp"), "--n", "700", "-q"]) == 0
+    np.testing.assert_array_equal(pv.read(tmp_path / "o.vtp")["original_id"],
+                                  ref["original_id"])
+
+
 def test_fan_cloud_input_reuses_its_rings(points):
     fans = _kinds(points)["fan cloud"]
     out = fans.fancloud.reduce(n_points=900, weights=(1, 0, 0, 0))

@@ -390,8 +390,16 @@ def triangles_of(dataset) -> np.ndarray | None:
     """The dataset's surface cells as ``(m, 3)`` triangles, or ``None`` if it has none.
 
     Polygons and triangle strips of a ``vtkPolyData`` are triangulated
-    (``vtkTriangleFilter``); vertices and lines are not surface cells.
+    (``vtkTriangleFilter``), and so are the 2-d cells of a
+    ``vtkUnstructuredGrid`` (triangles, quads, polygons, pixels, strips:
+    :func:`fancloud_vtk.io.grid_triangles`); vertices, lines and volume cells
+    are not surface cells.
     """
+    if dataset is not None and dataset.IsA("vtkUnstructuredGrid"):
+        from fancloud_vtk.io import grid_triangles
+
+        tri = grid_triangles(dataset)
+        return tri if len(tri) else None
     if dataset is None or not dataset.IsA("vtkPolyData"):
         return None
     if dataset.GetNumberOfPolys() == 0 and dataset.GetNumberOfStrips() == 0:
@@ -422,8 +430,9 @@ def input_fan_cloud(dataset, fan_values: dict, progress=None) -> tuple[FanCloud,
     """The fan cloud of a filter's input and which kind of input it was.
 
     * a fan cloud (``fan_offsets``/``fan_ring`` arrays): its rings as they are;
-    * a triangle mesh (polys): every vertex's one-ring is its fan, its
-      ``Normals`` point array (if any) the normals;
+    * a triangle mesh (polys or strips of a polydata, 2-d cells of an
+      unstructured grid: :func:`triangles_of`): every vertex's one-ring is its
+      fan, its ``Normals`` point array (if any) the normals;
     * any other point set: the fans are built with ``fan_values``.
     """
     from fancloud_vtk.core.entropy import fan_cloud_of_mesh
