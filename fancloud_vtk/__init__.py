@@ -3,14 +3,16 @@
 The core (:mod:`fancloud_vtk.core`) works on numpy arrays; the VTK algorithms
 (:mod:`fancloud_vtk.algorithms`) wrap it for VTK pipelines and ParaView; the
 PyVista accessor ``dataset.fancloud`` and the ``fancloud`` command forward to
-those.
+those. The filters import from here too (``from fancloud_vtk import
+FanCloudReduceFilter``); VTK is loaded on that first use, so ``import
+fancloud_vtk`` alone needs no VTK.
 """
 
 from .core.entropy import Entropy, entropy, fan_cloud_of_mesh
 from .core.fans import Cancelled, DuplicatePointsWarning, build_fans
 from .core.mesh import TriangleMesh, fan_cloud_to_mesh
 from .core.model import FanCloud, find_color_array
-from .core.reduction import Hierarchy, hierarchy, reduce
+from .core.reduction import Hierarchy, hierarchy, laplacian_smooth, reduce
 from .core.refinement import refine
 from .core.validation import FanCloudInputError
 from .core.vdfc import (
@@ -22,12 +24,43 @@ from .core.vdfc import (
 
 __version__ = "0.1.0"
 
+#: the VTK algorithms (fancloud_vtk.algorithms), imported on first use
+_FILTERS = (
+    "FanCloudEntropyFilter",
+    "FanCloudFilter",
+    "FanCloudMeshFilter",
+    "FanCloudReduceFilter",
+    "FanCloudRefineFilter",
+    "FanCloudSelectiveRefineFilter",
+    "FanCloudViewDependentFilter",
+)
+
+
+def __getattr__(name: str):
+    if name in _FILTERS:
+        from . import algorithms
+
+        return getattr(algorithms, name)
+    raise AttributeError(f"module 'fancloud_vtk' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_FILTERS))
+
+
 __all__ = [
     "Cancelled",
     "DuplicatePointsWarning",
     "Entropy",
     "FanCloud",
+    "FanCloudEntropyFilter",
+    "FanCloudFilter",
     "FanCloudInputError",
+    "FanCloudMeshFilter",
+    "FanCloudReduceFilter",
+    "FanCloudRefineFilter",
+    "FanCloudSelectiveRefineFilter",
+    "FanCloudViewDependentFilter",
     "Hierarchy",
     "TriangleMesh",
     "ViewDependentFanCloud",
@@ -37,6 +70,7 @@ __all__ = [
     "fan_cloud_to_mesh",
     "find_color_array",
     "hierarchy",
+    "laplacian_smooth",
     "reduce",
     "refine",
     "terrain_blocks",

@@ -63,6 +63,23 @@ def test_algorithms_layer_imports_no_pyvista():
     assert res.returncode == 0, res.stderr
 
 
+def test_filters_import_from_the_top_level_and_only_then_load_vtk():
+    code = (
+        "import sys, fancloud_vtk; "
+        "vtk = lambda: sorted(m for m in sys.modules if m.split('.')[0] in ('vtkmodules', 'vtk')); "
+        "assert not vtk(), vtk(); "
+        "from fancloud_vtk import FanCloudReduceFilter, FanCloudRefineFilter; "
+        "import fancloud_vtk.algorithms as a; "
+        "assert FanCloudReduceFilter is a.FanCloudReduceFilter; "
+        "assert FanCloudRefineFilter is a.FanCloudRefineFilter; "
+        "assert vtk(); "
+        "assert 'FanCloudEntropyFilter' in dir(fancloud_vtk); "
+        "assert not hasattr(fancloud_vtk, 'NoSuchFilter')"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+
+
 def _write_vtp(path, poly):
     writer = vtkXMLPolyDataWriter()
     writer.SetFileName(str(path))
