@@ -285,6 +285,25 @@ def test_abort_cancels_and_the_next_run_works(cloud):
     assert run(fans).GetNumberOfPolys() > 0
 
 
+def test_run_raises_the_error_without_printing_it_and_update_prints_it(cloud):
+    from vtkmodules.vtkCommonCore import vtkOutputWindow, vtkStringOutputWindow
+
+    fans = FanCloudFilter()
+    fans.SetInputDataObject(0, point_cloud(cloud[0][:5]))
+    previous = vtkOutputWindow.GetInstance()
+    capture = vtkStringOutputWindow()
+    vtkOutputWindow.SetInstance(capture)
+    try:
+        with pytest.raises(FanCloudInputError, match="needs at least"):
+            run(fans)
+        assert "needs at least" not in (capture.GetOutput() or "")  # raised, not printed too
+        fans.Modified()
+        fans.Update()  # as ParaView runs it: the output window is where the error goes
+        assert "FanCloudFilter: FanCloudInputError: " in capture.GetOutput()
+    finally:
+        vtkOutputWindow.SetInstance(previous)
+
+
 def test_error_in_request_data_is_re_raised_and_a_fixed_input_runs(cloud):
     p = cloud[0].copy()
     p[17] = np.nan

@@ -64,6 +64,7 @@ class FanCloudAlgorithm(VTKPythonAlgorithmBase):
         )
         self._values = {p.name: p.default for p in self.PARAMETERS}
         self.last_error: BaseException | None = None
+        self._raised_by_run = False  # run() re-raises the error: it is not printed as well
         for name, value in params.items():
             if name not in self._values:
                 raise TypeError(f"{type(self).__name__} has no parameter {name!r}")
@@ -92,9 +93,10 @@ class FanCloudAlgorithm(VTKPythonAlgorithmBase):
             output.ShallowCopy(result)
         except Exception as exc:  # VTK would swallow it: keep it for run()
             self.last_error = exc
-            vtkOutputWindow.GetInstance().DisplayErrorText(
-                f"{type(self).__name__}: {type(exc).__name__}: {exc}\n"
-            )
+            if not self._raised_by_run:  # ParaView's output window, a plain Update()
+                vtkOutputWindow.GetInstance().DisplayErrorText(
+                    f"{type(self).__name__}: {type(exc).__name__}: {exc}\n"
+                )
             return 0
         return 1
 
@@ -108,7 +110,9 @@ def run(algorithm, port: int = 0):
 
     VTK only reports a failed update through its return value (and a second
     ``Update()`` returns success without running), so the algorithm is
-    marked modified first when its last run failed. A failure outside
+    marked modified first when its last run failed. Its error is raised, not
+    printed as well (a plain ``Update()``, as in ParaView, prints it to VTK's
+    output window). A failure outside
     ``RequestData`` (no input connection, an input of the wrong type, a
     failing upstream algorithm) raises a ``RuntimeError`` with VTK's message
     instead of returning an empty output.
@@ -124,9 +128,11 @@ def run(algorithm, port: int = 0):
         (alg.GetExecutive(), alg.GetExecutive().AddObserver(vtkCommand.ErrorEvent, pipeline_errors))
         for alg in algorithms
     ]
+    algorithm._raised_by_run = True
     try:
         ok = algorithm.Update()
     finally:
+        algorithm._raised_by_run = False
         for obj, tag in tags:
             obj.RemoveObserver(tag)
     if algorithm.last_error is not None:
