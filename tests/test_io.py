@@ -906,15 +906,35 @@ def test_cell_triangles_of_every_surface_cell_kind():
     assert cell_triangles([0, 2, 6], [0, 1, 0, 1, 2, 3], [3, 10]).shape == (0, 3)
 
 
-@pytest.mark.parametrize("cast", ["pixels", "triangles"])
-def test_vtu_surface_cells_are_the_files_faces(tmp_path, cast):
-    import pyvista as pv
+@pytest.mark.parametrize("cells", ["pixels", "triangles"])
+def test_vtu_surface_cells_are_the_files_faces(tmp_path, cells):
+    from vtkmodules.util.numpy_support import numpy_to_vtk
+    from vtkmodules.vtkCommonCore import vtkPoints
+    from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkUnstructuredGrid
+    from vtkmodules.vtkIOXML import vtkXMLUnstructuredGridWriter
 
-    grid = pv.ImageData(dimensions=(6, 5, 1)).cast_to_unstructured_grid()  # pixels
-    if cast == "triangles":  # the same points as a triangle mesh facing +z
-        grid = pv.Plane(i_resolution=5, j_resolution=4).triangulate().cast_to_unstructured_grid()
+    x, y = np.meshgrid(np.arange(6.0), np.arange(5.0))  # a 6 x 5 grid in the plane z = 0
+    pts = np.stack([x.ravel(), y.ravel(), np.zeros(30)], axis=1)
+    corner = (np.arange(5)[None, :] + 6 * np.arange(4)[:, None]).ravel()
+    if cells == "pixels":  # VTK's pixel order: (0, 0), (1, 0), (0, 1), (1, 1)
+        conn, kind = np.stack([corner, corner + 1, corner + 6, corner + 7], axis=1), 8
+    else:  # two counter-clockwise triangles per square
+        conn = np.concatenate([np.stack([corner, corner + 1, corner + 7], axis=1),
+                               np.stack([corner, corner + 7, corner + 6], axis=1)])
+        kind = 5
+    grid = vtkUnstructuredGrid()
+    points = vtkPoints()
+    points.SetData(numpy_to_vtk(pts, deep=True))
+    grid.SetPoints(points)
+    array = vtkCellArray()
+    for cell in conn:
+        array.InsertNextCell(len(cell), [int(i) for i in cell])
+    grid.SetCells(kind, array)
     path = tmp_path / "surface.vtu"
-    grid.save(path)
+    writer = vtkXMLUnstructuredGridWriter()
+    writer.SetFileName(str(path))
+    writer.SetInputData(grid)
+    assert writer.Write() == 1
     src = read_point_cloud(str(path))
     assert src.faces.shape == (2 * 5 * 4, 3)
     p = src.points[src.faces]
