@@ -72,6 +72,7 @@ def test_filters_import_from_the_top_level_and_only_then_load_vtk():
         "import fancloud_vtk.algorithms as a; "
         "assert FanCloudReduceFilter is a.FanCloudReduceFilter; "
         "assert FanCloudRefineFilter is a.FanCloudRefineFilter; "
+        "assert set(fancloud_vtk._FILTERS) == {n for n in a.__all__ if n.endswith('Filter')}; "
         "assert vtk(); "
         "assert 'FanCloudEntropyFilter' in dir(fancloud_vtk); "
         "assert not hasattr(fancloud_vtk, 'NoSuchFilter')"
