@@ -18,7 +18,7 @@ from fancloud_vtk.algorithms.convert import fancloud_from_vtk, input_fan_cloud, 
 from fancloud_vtk.algorithms.entropy import FanCloudEntropyFilter
 from fancloud_vtk.algorithms.fans import FanCloudFilter
 from fancloud_vtk.algorithms.mesh import FanCloudMeshFilter
-from fancloud_vtk.algorithms.reduce import FanCloudReduceFilter
+from fancloud_vtk.algorithms.reduce import FanCloudReduceFilter, FanCloudSelectiveRefineFilter
 from fancloud_vtk.algorithms.refine import FanCloudRefineFilter
 from fancloud_vtk.algorithms.vdfc import (
     FanCloudViewDependentFilter,
@@ -33,6 +33,7 @@ from fancloud_vtk.params import (
     MESH_PARAMS,
     REDUCE_PARAMS,
     REFINE_PARAMS,
+    SELECTIVE_PARAMS,
     VDFC_PARAMS,
     Param,
     check_params,
@@ -337,6 +338,59 @@ class FanCloudAccessor:
         _one_amount(params, "keep")
         values = check_params(FAN_PARAMS + REDUCE_PARAMS, params)
         return _run(FanCloudReduceFilter(**values), self._dataset, progress_bar, "Reducing")
+
+    @_document(FAN_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS)
+    def selective(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
+        """Reduce, smooth the coarse level, refine only a region of interest (Figure 11).
+
+        The dataset is reduced to ``n_points``/``keep`` as by :meth:`reduce`,
+        that coarse level is smoothed ``smooth_iterations`` times, every
+        removed point is put back on it by its detail in its local frame,
+        and those inside the region (a sphere ``region_center`` /
+        ``region_radius``, or a box ``region_bounds`` with
+        ``region='box'``) are reinserted. For regions of other shapes, or
+        other edits of the coarse level, use :meth:`hierarchy` and
+        :meth:`fancloud_vtk.Hierarchy.selective`.
+
+        Parameters
+        ----------
+        {params}
+        progress_bar : bool, default: False
+            Show a progress bar (needs ``tqdm``).
+
+        Returns
+        -------
+        pyvista.PolyData
+            A new fan cloud: the coarse level's points and the reinserted
+            ones (fans built anew with the fan keywords), with their point
+            arrays, ``original_id`` and the field array ``fancloud_input``.
+
+        Raises
+        ------
+        ValueError
+            ``n_points`` together with ``keep``; a sphere region without a
+            radius > 0, box bounds with a min above a max; the reduction's
+            errors.
+
+        See Also
+        --------
+        hierarchy : the levels of detail, for any region or edit.
+
+        Examples
+        --------
+        >>> import pyvista as pv
+        >>> from fancloud_vtk.data import bunny_path
+        >>> bunny = pv.read(bunny_path())
+        >>> head = bunny.fancloud.selective(keep=0.15, smooth_iterations=5,
+        ...                                 region_center=(0.1, 0.33, 0.36), region_radius=0.14)
+        >>> 4213 < head.n_points < bunny.n_points
+        True
+        >>> head.plot(smooth_shading=True)  # doctest: +SKIP
+        """
+        _one_amount(params, "keep")
+        values = check_params(FAN_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS, params)
+        return _run(FanCloudSelectiveRefineFilter(**values), self._dataset, progress_bar,
+                    "Refining a region")
 
     @_document(FAN_PARAMS + REFINE_PARAMS)
     def refine(self, *, progress_bar: bool = False, **params) -> pv.PolyData:

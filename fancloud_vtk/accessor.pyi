@@ -140,6 +140,31 @@ class FanCloudAccessor:
     ) -> pv.PolyData:
         """Refine beyond the input resolution by entropy (paper section 7); a new PolyData."""
     # END GENERATED refine
+    # BEGIN GENERATED selective (scripts/gen_docs.py from FAN, REDUCE, SELECTIVE_PARAMS)
+    def selective(
+        self,
+        *,
+        k: int = 6,
+        max_angle: float = 90.0,
+        max_replacements: int = 42,
+        rule: Literal["cover", "paper"] = "cover",
+        rotate_sharp_edges: bool = True,
+        orient: bool = True,
+        keep: float = 0.42,
+        n_points: int = 0,
+        weights: tuple[float, float, float, float] = (1.0, 1.0, 50.0, 0.0),
+        method: Literal["entropy", "error"] = "entropy",
+        color_array: str = "",
+        exact: bool = False,
+        smooth_iterations: int = 0,
+        region: Literal["sphere", "box"] = "sphere",
+        region_center: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        region_radius: float = 0.0,
+        region_bounds: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+        progress_bar: bool = False,
+    ) -> pv.PolyData:
+        """Reduce, smooth, refine only a region of interest (Figure 11); a new PolyData."""
+    # END GENERATED selective
     # BEGIN GENERATED vdfc (scripts/gen_docs.py from FAN_PARAMS + VDFC_PARAMS)
     def vdfc(
         self,

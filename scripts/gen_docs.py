@@ -64,6 +64,10 @@ VERBS = {
         FAN_PARAMS + REDUCE_PARAMS,
         "Reduce to an exact number of points by entropy (paper section 5); a new PolyData.",
     ),
+    "selective": (
+        FAN_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS,
+        "Reduce, smooth, refine only a region of interest (Figure 11); a new PolyData.",
+    ),
     "refine": (
         FAN_PARAMS + REFINE_PARAMS,
         "Refine beyond the input resolution by entropy (paper section 7); a new PolyData.",
@@ -98,7 +102,8 @@ def stub_signature(table: tuple[Param, ...], name: str = "fans", doc: str | None
             kind = "Literal[" + ", ".join(f'"{c}"' for c in p.choices) + "]"
             default = f'"{p.default}"'
         elif p.kind == "vector":
-            kind = "tuple[" + ", ".join(["float"] * p.size) + "]"
+            kind = "tuple[float, ...]" if p.size > 4 else \
+                "tuple[" + ", ".join(["float"] * p.size) + "]"
             default = repr(p.default)
         elif p.kind == "str":
             kind = "str"

@@ -151,6 +151,28 @@ def test_selective_filter(points):
         run(sel)
 
 
+def test_accessor_selective_is_the_filter(points):
+    p, rgb = points
+    cloud = pv.PolyData(p)
+    cloud["RGB"] = rgb
+    before = dataset_fingerprint(cloud)
+    region = {"keep": 0.2, "region_center": (0, 0, 1), "region_radius": 0.6,
+              "smooth_iterations": 1}
+    got = cloud.fancloud.selective(**region)
+    assert dataset_fingerprint(cloud) == before, "input untouched"
+    sel = FanCloudSelectiveRefineFilter(**region)
+    sel.SetInputDataObject(0, cloud)
+    ref = pv.wrap(run(sel))
+    np.testing.assert_array_equal(got["original_id"], ref["original_id"])
+    np.testing.assert_array_equal(got.points, ref.points)
+    np.testing.assert_array_equal(got["RGB"], ref["RGB"])
+    assert got["fancloud_input"][0] == "point set" and 600 < got.n_points < 3000
+    with pytest.raises(ValueError, match="n_points or keep, not both"):
+        cloud.fancloud.selective(n_points=500, keep=0.2, region_radius=1.0)
+    with pytest.raises(ValueError, match="region_radius must be > 0"):
+        cloud.fancloud.selective(keep=0.2)
+
+
 def test_selective_filter_builds_its_fans_with_its_fan_parameters(points):
     p, _ = points
     sizes = {}
