@@ -306,12 +306,17 @@ def cmd_refine(args) -> int:
 
 def cmd_selective(args) -> int:
     from fancloud_vtk.algorithms.reduce import region_of, selective_refinement
+    from fancloud_vtk.core.reduction import target_count
 
     if args.n_points is None and args.keep is None:
         raise ValueError("give --keep F (a fraction) or --n N (a count)")
-    values = _params(args, FAN_PARAMS + SELECTIVE_OPTIONS)
+    # the options, the amount (all but "larger than the cloud") and the region are checked
+    # before the input is read and reduced
+    table = FAN_PARAMS + SELECTIVE_OPTIONS
+    values = check_params(table, _params(args, table))
+    target_count(sys.maxsize, n_points=args.n_points, keep=args.keep)
     values.update(n_points=args.n_points or 0, keep=args.keep)
-    region_of(values)  # a bad region fails before the input is read
+    region_of(values)
 
     def call(fc, progress):
         return selective_refinement(fc, values, progress)

@@ -170,9 +170,11 @@ def _strip_triangulate(offsets: np.ndarray, connectivity: np.ndarray) -> np.ndar
 def cell_triangles(offsets, connectivity, types) -> np.ndarray:
     """The triangles of the surface cells of a VTK cell array, ``(t, 3)`` int64.
 
-    Triangles, quads and polygons are fan-triangulated, pixels taken in
-    their counter-clockwise order (0, 1, 3, 2), triangle strips decomposed as
-    VTK does; other cells (vertices, lines, volume cells) give none.
+    Triangles, quads and polygons are fan-triangulated from their first
+    vertex (right for convex ones, as in the OBJ and PLY readers), pixels
+    taken in their counter-clockwise order (0, 1, 3, 2), triangle strips
+    decomposed as VTK does; other cells (vertices, lines, volume cells,
+    quadratic and higher-order cells) give none.
     ``offsets``/``connectivity``: the cell array in CSR form (VTK 9's
     ``GetOffsetsArray``/``GetConnectivityArray``), ``types`` the cell types.
     """

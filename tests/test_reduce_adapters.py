@@ -88,7 +88,13 @@ def test_entropy_takes_three_kinds(points, kind):
     assert "entropy" not in data.point_data
 
 
-def test_reduce_to_mesh_and_hierarchy(points):
+def _saved(h, tmp_path):
+    path = tmp_path / "h.npz"
+    h.save(path)
+    return path
+
+
+def test_reduce_to_mesh_and_hierarchy(points, tmp_path):
     cloud = _kinds(points)["point set"]
     mesh = cloud.fancloud.reduce(keep=0.25, mesh=True)
     assert mesh.n_points == 750 and mesh.n_cells > 1400
@@ -96,6 +102,7 @@ def test_reduce_to_mesh_and_hierarchy(points):
     h = cloud.fancloud.hierarchy(300, weights=(1, 0, 0, 0))
     assert isinstance(h, Hierarchy) and h.n_min == 300
     assert h.fancloud_input == "point set"
+    assert Hierarchy.load(_saved(h, tmp_path)).fancloud_input is None  # not saved
     fans = _kinds(points)["fan cloud"]
     assert fans.fancloud.hierarchy(2000).fancloud_input == "fan cloud"
     assert h.level(1000).n_points == 1000
@@ -225,9 +232,15 @@ def test_cli_selective_is_the_filter(points, tmp_path, capsys):
     np.testing.assert_array_equal(got.points, ref.points)
     np.testing.assert_array_equal(got["RGB"], ref["RGB"])
     assert 600 < got.n_points < 3000
-    # a bad region is refused before anything is read
-    code = main(["selective", str(tmp_path / "missing.vtp"), "-o", str(out), "--n", "500"])
-    assert code == 2 and "region_radius must be > 0" in capsys.readouterr().err
+    # bad options, amounts and regions are refused before anything is read
+    missing = str(tmp_path / "missing.vtp")
+    for args, message in [(["--n", "500"], "region_radius must be > 0"),
+                          (["--n", "0", "--region-radius", "1"], "cannot reduce to 0 points"),
+                          (["--keep", "0.2", "--region-radius", "1", "--smooth-iterations", "-1"],
+                           "smooth_iterations"),
+                          (["--keep", "0.2", "--region", "box"], "region_bounds must be set")]:
+        assert main(["selective", missing, "-o", str(out), *args]) == 2
+        assert message in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["selective", str(src), "-o", str(out), "--region-radius", "1"])  # no amount
     assert "--keep" in capsys.readouterr().err

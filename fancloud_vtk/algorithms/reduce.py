@@ -99,6 +99,9 @@ def region_of(values: dict):
             raise ValueError("region_radius must be > 0 for a sphere region of interest")
         return values["region_center"], values["region_radius"]
     b = values["region_bounds"]
+    if b[0] == b[1] and b[2] == b[3] and b[4] == b[5]:
+        raise ValueError(f"region_bounds must be set for a box region of interest "
+                         f"(xmin, xmax, ymin, ymax, zmin, zmax), got the single point {b}")
     if b[0] > b[1] or b[2] > b[3] or b[4] > b[5]:
         raise ValueError(f"region_bounds must be (xmin, xmax, ymin, ymax, zmin, zmax) "
                          f"with min <= max, got {b}")

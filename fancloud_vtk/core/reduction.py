@@ -577,6 +577,10 @@ class Hierarchy:
     True
     """
 
+    #: which kind of input ``dataset.fancloud.hierarchy()`` took ('fan cloud', 'triangle
+    #: mesh' or 'point set'); None for a hierarchy made otherwise (not saved)
+    fancloud_input: str | None = None
+
     def __init__(self, *, source: FanCloud, order, rem_off, rem_ring, rem_open, detail, log_off,
                  ent_x, ent_open, ent_off, ent_ring, coarse_off, coarse_ring, coarse_open,
                  weights, method):
