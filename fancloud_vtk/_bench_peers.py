@@ -539,6 +539,12 @@ def load_reduce_colour():
     return _ours_reducer((1.0, 1.0, 50.0, 1.0))
 
 
+def load_reduce_colour_distance():
+    """Ours: entropy with weights (1, 0, 0, 1) (spacing and colour only) and the input's
+    colours."""
+    return _ours_reducer((1.0, 0.0, 0.0, 1.0))
+
+
 def load_reduce_error():
     """Ours: ``method='error'`` (the paper's Figure 10b)."""
     return _ours_reducer((1.0, 1.0, 50.0, 0.0), method="error")
@@ -680,6 +686,10 @@ REDUCE_METHODS = {m.name: m for m in (
     Method("ours-colour", "ours entropy (1,1,50,1) + colour", f"{_HERE}:load_reduce_colour",
            "reduce(fc, target, weights=(1, 1, 50, 1)) with the input's RGB (only on data "
            "with colour)"),
+    Method("ours-colour-distance", "ours entropy (1,0,0,1) + colour",
+           f"{_HERE}:load_reduce_colour_distance",
+           "reduce(fc, target, weights=(1, 0, 0, 1)) with the input's RGB (only on data "
+           "with colour)"),
     Method("ours-error", "ours error", f"{_HERE}:load_reduce_error",
            "reduce(fc, target, method='error')"),
     Method("fast-simplification", "fast-simplification", f"{_HERE}:load_fast_simplification",
@@ -711,7 +721,7 @@ REDUCE_REQUIRES = {"fast-simplification": "fast-simplification (pip install "
                    "quadric-texture": "pymeshlab", "poisson-disk": "pymeshlab",
                    "vtk-quadric": "vtk", **{k: "fancloud_vtk.reduce" for k in
                                             ("ours-uniform", "ours-shape", "ours-colour",
-                                             "ours-error")}}
+                                             "ours-colour-distance", "ours-error")}}
 
 
 def reduce_method_for(spec: str) -> Method:

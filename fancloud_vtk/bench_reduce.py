@@ -59,7 +59,9 @@ TARGET_QEC_SPEEDUP = 5.0  #: quadric edge collapse time / ours reduce time
 QUALITY_KEEPS = (0.176, 0.42)  #: the quality figures are at these kept fractions
 TARGET_FEATURE_RATIO = 1.0  #: feature error ours / quadric edge collapse (strictly below)
 TARGET_HAUSDORFF_RATIO = 1.5  #: mean Hausdorff ours / quadric edge collapse
-TARGET_COLOUR_RATIO = 1.0  #: colour error ours (1,1,50,1) / best peer (strictly below)
+TARGET_COLOUR_RATIO = 1.0  #: colour error ours (with the colour weight) / best peer (below)
+#: our methods with the colour weight (only run on data with colour), and their weights
+COLOUR_METHODS = {"ours-colour": "(1,1,50,1)", "ours-colour-distance": "(1,0,0,1)"}
 
 FEATURE_FRACTION = 0.10  #: the most curved share of the input points: the feature region
 DEFAULT_KEEPS = (0.42, 0.176)
@@ -442,25 +444,30 @@ def _quality_rows(ds, data, keep, judged) -> list[dict]:
 
 
 def _colour_rows(ds, data, keep, judged) -> list[dict]:
-    name = "colour: error ours (1,1,50,1) / best peer"
-    o = _pick(ds, "ours-colour", keep)
+    """One row per method of ours with the colour weight (``COLOUR_METHODS``) that ran."""
     peers = [r for r in ds["results"] if abs(r["keep"] - keep) < 1e-9
              and not r["method"].startswith("ours")]
-    if o is None and not peers:
-        return []
     measured = [r for r in peers if _value(r, "colour_rms") is not None]
-    a = None if o is None else _value(o, "colour_rms")
-    params = f"keep {keep:g}; RMS per channel, 0-255"
     target = f"< {TARGET_COLOUR_RATIO:g}" if judged else ""
-    if a is None or not measured:
-        return [_row(name, data, params, "n/a", "x", target,
-                     "not measured: " + (_why(o) if a is None else "no peer measured"))]
-    best = min(measured, key=lambda r: r["measures"]["colour_rms"])
-    b = best["measures"]["colour_rms"]
-    params += (f"; ours {255 * a:.2f}, best peer {best['label']} {255 * b:.2f} "
-               f"({len(measured)} of {len(peers)} peers measured)")
-    return [_row(name, data, params, f"{a / b:.3f}" if b else "inf", "x", target,
-                 _ok(b > 0 and a / b < TARGET_COLOUR_RATIO) if judged else "")]
+    rows = []
+    for method, weights in COLOUR_METHODS.items():
+        o = _pick(ds, method, keep)
+        if o is None and (not peers or method != "ours-colour"):
+            continue
+        name = f"colour: error ours {weights} / best peer"
+        a = None if o is None else _value(o, "colour_rms")
+        params = f"keep {keep:g}; RMS per channel, 0-255"
+        if a is None or not measured:
+            rows.append(_row(name, data, params, "n/a", "x", target,
+                             "not measured: " + (_why(o) if a is None else "no peer measured")))
+            continue
+        best = min(measured, key=lambda r: r["measures"]["colour_rms"])
+        b = best["measures"]["colour_rms"]
+        params += (f"; ours {255 * a:.2f}, best peer {best['label']} {255 * b:.2f} "
+                   f"({len(measured)} of {len(peers)} peers measured)")
+        rows.append(_row(name, data, params, f"{a / b:.3f}" if b else "inf", "x", target,
+                         _ok(b > 0 and a / b < TARGET_COLOUR_RATIO) if judged else ""))
+    return rows
 
 
 def reduce_markdown(res: dict) -> str:
@@ -681,7 +688,7 @@ def run_reduce(args, argv: list[str]) -> dict:
                              data["from_points"])
             warm = _warmup_file(os.path.join(work, f"warm-{kind}-{n}.npz"), data, args.seed)
             for method in methods:
-                if method.name == "ours-colour" and data["colors"] is None:
+                if method.name in COLOUR_METHODS and data["colors"] is None:
                     ds["results"] += [_skipped(method, k, t, "skipped: the input has no "
                                                "colour (or one uniform colour)")
                                       for k, t in zip(fractions, targets, strict=True)]

@@ -382,3 +382,35 @@ def test_bench_reduce_reports_each_fraction(tmp_path, monkeypatch, loader, timeo
         assert results[2]["status"] == "timeout"
         assert results[2]["message"].startswith("not run: the process timed out")
         assert 0 < results[1]["time_lower_bound"] <= 3.5
+
+
+def test_reduce_colour_rows_one_per_colour_setting():
+    """Each of ours with the colour weight that ran gets its own row against the best peer;
+    one that did not run gets none, but the paper's setting says it was not run."""
+    from fancloud_vtk.bench_reduce import _colour_rows
+
+    def result(method, rms, status="ok"):
+        return {"method": method, "label": method, "keep": 0.42, "status": status,
+                "message": "", "measures": {"colour_rms": rms}}
+
+    data = "airplane"
+    ds = {"results": [result("ours-colour", 0.02), result("ours-colour-distance", 0.004),
+                      result("fast-simplification", 0.008), result("quadric", 0.01),
+                      result("ours-shape", 0.001)]}
+    rows = {r["figure"]: r for r in _colour_rows(ds, data, 0.42, judged=True)}
+    assert set(rows) == {"colour: error ours (1,1,50,1) / best peer",
+                         "colour: error ours (1,0,0,1) / best peer"}
+    paper = rows["colour: error ours (1,1,50,1) / best peer"]
+    assert float(paper["measured"]) == pytest.approx(0.02 / 0.008, rel=1e-3)
+    assert paper["verdict"] == "NO" and "fast-simplification 2.04" in paper["parameters"]
+    spacing = rows["colour: error ours (1,0,0,1) / best peer"]
+    assert float(spacing["measured"]) == pytest.approx(0.5, rel=1e-3)
+    assert spacing["verdict"] == "yes"
+    # not judged at this fraction: no target, no verdict
+    assert all(r["target"] == r["verdict"] == ""
+               for r in _colour_rows(ds, data, 0.42, judged=False))
+
+    ds["results"] = ds["results"][2:]  # neither of ours with colour ran
+    (only,) = _colour_rows(ds, data, 0.42, judged=True)
+    assert only["figure"] == "colour: error ours (1,1,50,1) / best peer"
+    assert only["measured"] == "n/a" and only["verdict"].startswith("not measured: not run")
