@@ -211,7 +211,8 @@ REDUCE_PARAMS: tuple[Param, ...] = (
     Param(
         "method", "choice", "entropy",
         "what each removal minimises: 'entropy' (the point of lowest entropy) or 'error' (the "
-        "point whose removal changes the surface least, the distance to its ring's plane)",
+        "point whose removal changes the surface least: the largest distance from its ring's "
+        "plane of the point and of the removed points it carries, the paper's e(r))",
         choices=("entropy", "error"),
     ),
     _COLOR_ARRAY,

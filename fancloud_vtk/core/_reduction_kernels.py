@@ -171,20 +171,102 @@ def _from_frame(fr, a, b, c):
     return (a * tx + b * bx + c * nx, a * ty + b * by + c * ny, a * tz + b * bz + c * nz)
 
 
-@njit(cache=True)
-def _error_cost(points, normals, R, rlen, x):
-    """Distance of x to the plane of its ring (the surface change if x goes)."""
-    return _ring_error(points, normals, x, R[x], rlen[x])
+# -- the approximation error (method 'error') ------------------------------------------
+#
+# As the paper's e(r) (section 8: the maximum deviation of all of r's descendants from
+# r's fan), the cost of removing x is the largest distance from the plane of x's ring of
+# x itself and of every point removed before that x carries. A removed point is carried
+# by exactly one remaining point: at a removal, the removed point and the points it
+# carried go each to the nearest of the points whose fans it was in (those fans are
+# re-formed, so their costs are recomputed anyway). The lists are linked through
+# ``head`` (a point's first carried point, -1: none) and ``nxt``.
 
 
 @njit(cache=True)
-def _ring_error(points, normals, x, ring, k):
-    """:func:`_error_cost` of x with the ring ``ring[:k]``."""
+def _plane_distance(fr, points, d):
+    return abs((points[d, 0] - fr[0]) * fr[3] + (points[d, 1] - fr[1]) * fr[4]
+               + (points[d, 2] - fr[2]) * fr[5])
+
+
+@njit(cache=True)
+def _deviation(points, normals, x, ring, k, head, nxt, extra, extra_to, n_extra):
+    """The cost of removing x with the ring ``ring[:k]``: the largest distance from the
+    ring's plane of x, of the points x carries (``head``/``nxt``; none if they are empty)
+    and of the ``extra[i]`` with ``extra_to[i] == x`` (a removal of this round passes
+    them to x)."""
     if k == 0:
         return 0.0
     fr = local_frame(points, ring, k, normals[x, 0], normals[x, 1], normals[x, 2])
-    return abs((points[x, 0] - fr[0]) * fr[3] + (points[x, 1] - fr[1]) * fr[4]
-               + (points[x, 2] - fr[2]) * fr[5])
+    e = _plane_distance(fr, points, x)
+    if head.shape[0] > 0:
+        d = head[x]
+        while d >= 0:
+            e = max(e, _plane_distance(fr, points, d))
+            d = nxt[d]
+    for i in range(n_extra):
+        if extra_to[i] == x:
+            e = max(e, _plane_distance(fr, points, extra[i]))
+    return e
+
+
+@njit(cache=True)
+def _heir(points, cands, m, d):
+    """The point of ``cands[:m]`` nearest to the point d (ties: the smaller index); -1
+    if m is 0."""
+    best = -1
+    bd = INF
+    for a in range(m):
+        y = cands[a]
+        dx = points[y, 0] - points[d, 0]
+        dy = points[y, 1] - points[d, 1]
+        dz = points[y, 2] - points[d, 2]
+        dd = dx * dx + dy * dy + dz * dz
+        if dd < bd or (dd == bd and y < best):
+            best = y
+            bd = dd
+    return best
+
+
+@njit(cache=True)
+def _heirs_of(R, rlen, IN, nin, p):
+    """Where p's removal passes p and its carried points: the fans that contain p, or
+    (none does) p's ring. (row, count)"""
+    if nin[p] > 0:
+        return IN[p], nin[p]
+    return R[p], rlen[p]
+
+
+@njit(cache=True)
+def _planned_heirs(points, head, nxt, p, cands, m, ext, ext_to):
+    """p and the points it carries, each with its heir among ``cands[:m]``, into ``ext``
+    and ``ext_to`` (grown when short). Returns (count, ext, ext_to)."""
+    n_ext = 0
+    d = p
+    while d >= 0:
+        if n_ext == ext.shape[0]:
+            ext = _grow(ext, 2 * n_ext + 8)
+            ext_to = _grow(ext_to, 2 * n_ext + 8)
+        ext[n_ext] = d
+        ext_to[n_ext] = _heir(points, cands, m, d)
+        n_ext += 1
+        d = head[p] if d == p else nxt[d]
+    return n_ext, ext, ext_to
+
+
+@njit(cache=True)
+def _pass_on(points, head, nxt, p, cands, m):
+    """p's removal: p and the points it carried go each to its heir among ``cands[:m]``."""
+    d = p
+    after = head[p]
+    head[p] = -1
+    while d >= 0:
+        y = _heir(points, cands, m, d)
+        if y >= 0:
+            nxt[d] = head[y]
+            head[y] = d
+        d = after
+        if d >= 0:
+            after = nxt[d]
 
 
 # -- re-forming a fan -----------------------------------------------------------------
@@ -357,15 +439,16 @@ def _grow(arr, need):
 
 
 @njit(cache=True)
-def _key(points, normals, R, rlen, dist, curv, cc, col, w, method, x):
+def _key(points, normals, R, rlen, dist, curv, cc, col, w, method, head, nxt, x):
     if method == METHOD_ERROR:
-        return _error_cost(points, normals, R, rlen, x)
+        return _deviation(points, normals, x, R[x], rlen[x], head, nxt, head[:0], head[:0], 0)
     return w[0] * dist[x] + w[1] * curv[x] + w[2] * cc[x] + w[3] * col[x]
 
 
 @njit(cache=True, parallel=True)
-def init_state(points, normals, colors, R, rlen, w, dbar, method):
-    """Terms and keys of every point: (dist, curv, cc, col, key) (the heap: :func:`heap_of`)."""
+def init_state(points, normals, colors, R, rlen, w, dbar, method, head, nxt):
+    """Terms and keys of every point: (dist, curv, cc, col, key) (the heap: :func:`heap_of`).
+    ``head``, ``nxt``: the carried points (method 'error'; empty arrays otherwise)."""
     n = points.shape[0]
     dist = np.zeros(n)
     curv = np.zeros(n)
@@ -376,7 +459,7 @@ def init_state(points, normals, colors, R, rlen, w, dbar, method):
     key = np.empty(n)
     for x in prange(n):
         cc[x] = point_cc(points, curv, x, R[x], rlen[x], dbar)
-        key[x] = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, x)
+        key[x] = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, head, nxt, x)
         if rlen[x] == 0:
             key[x] = INF  # an isolated point has no fan to re-form: it stays
     return dist, curv, cc, col, key
@@ -386,7 +469,7 @@ def init_state(points, normals, colors, R, rlen, w, dbar, method):
 def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, active, IN, nin,
                  over, dist, curv, cc, col, key, heap, hpos, counters, max_steps, target,
                  order, detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open,
-                 ent_off, ent_ring, stamp):
+                 ent_off, ent_ring, stamp, head, nxt):
     """Remove up to ``max_steps`` points (never below ``target`` active ones).
 
     ``counters``: [heap size, removals, log entries, ring entries of the log,
@@ -480,6 +563,11 @@ def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, activ
         hpos[p] = -1
         for a in range(k):
             _in_remove(IN, nin, over, R[p, a], p)
+        if method == METHOD_ERROR:
+            if n_aff > 0:
+                _pass_on(points, head, nxt, p, aff, n_aff)
+            else:
+                _pass_on(points, head, nxt, p, R[p], k)
         # the new rings
         for i in range(n_aff):
             x = aff[i]
@@ -502,7 +590,8 @@ def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, activ
             if not active[y]:
                 continue
             cc[y] = point_cc(points, curv, y, R[y], rlen[y], dbar)
-            value = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, y)
+            value = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, head, nxt,
+                         y)
             if rlen[y] == 0:
                 value = INF
             _heap_update(heap, hpos, key, y, value, size)
@@ -761,7 +850,7 @@ def accept_batch(cands, R, rlen, IN, nin, over, mark, tag):
 
 @njit(cache=True, parallel=True)
 def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-                 with_frames, cc, w, method, key_now):
+                 with_frames, cc, w, method, key_now, head, nxt):
     """Phase A: the new fans of every point whose fan contains an accepted point.
 
     Returns (buf, buf_len, buf_open, buf_terms, ok, frames): buf[buf_off[i] +
@@ -785,8 +874,14 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
     frames = np.empty((n_acc if with_frames else 0, 6))
     for ch in prange(n_chunks):
         cand, xs, ys, ordr, hull = fan_scratch(width)
+        ext = np.empty(16, np.int64)
+        ext_to = np.empty(16, np.int64)
         for i in range((n_acc * ch) // n_chunks, (n_acc * (ch + 1)) // n_chunks):
             p = acc[i]
+            n_ext = 0
+            if key_now and method == METHOD_ERROR:
+                row, m_h = _heirs_of(R, rlen, IN, nin, p)
+                n_ext, ext, ext_to = _planned_heirs(points, head, nxt, p, row, m_h, ext, ext_to)
             for j in range(nin[p]):
                 x = IN[p, j]
                 h, op = _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, ordr,
@@ -803,7 +898,8 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
                 buf_terms[b, 2] = co
                 if key_now:
                     if method == METHOD_ERROR:
-                        buf_terms[b, 3] = _ring_error(points, normals, x, buf[b], h)
+                        buf_terms[b, 3] = _deviation(points, normals, x, buf[b], h, head,
+                                                     nxt, ext, ext_to, n_ext)
                     else:  # as _key (w[2] is 0, cc[x] unchanged this round)
                         buf_terms[b, 3] = w[0] * d + w[1] * cu + w[2] * cc[x] + w[3] * co
             if not with_frames:
@@ -885,7 +981,8 @@ def _write_logs(R, rlen, ropen, IN, nin, acc, frames, idx, rem_at, ent_at, ring_
 
 @njit(cache=True, parallel=True)
 def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
-           buf_open, buf_terms, dist, curv, col, key_now, stamp, tag, n_chunks):
+           buf_open, buf_terms, dist, curv, col, key_now, stamp, tag, n_chunks, points, head,
+           nxt):
     """Make the removals ``acc[idx]``: fans re-formed (with their entropy terms), in-lists
     kept; the changed fans, once.
 
@@ -924,6 +1021,9 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
         e = ev_off[j]
         for t in range(nin[p]):  # a copy: p's in-list empties as its fans change
             changed[ch_off[j] + t] = IN[p, t]
+        if head.shape[0] > 0:  # method 'error': p and what it carried to their heirs
+            row, m_h = _heirs_of(R, rlen, IN, nin, p)
+            _pass_on(points, head, nxt, p, row, m_h)
         for a in range(rlen[p]):
             ev_y[e] = R[p, a]
             ev_x[e] = p
@@ -973,7 +1073,7 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
 def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len,
                  buf_open, buf_terms, dist, curv, col, key_now, ok, frames, limit, counters,
                  order, detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off,
-                 ent_ring, stamp, write_logs=True):
+                 ent_ring, stamp, points, head, nxt, write_logs=True):
     """Phase B: log (in parallel) and apply (in index order) the removals a round makes.
 
     A point whose fans cannot all be re-formed stays, its key set to inf.
@@ -995,16 +1095,17 @@ def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, 
     counters[5] += 1
     return _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
                   buf_open, buf_terms, dist, curv, col, key_now, stamp, counters[5],
-                  get_num_threads() if m > 64 else 1)
+                  get_num_threads() if m > 64 else 1, points, head, nxt)
 
 
 @njit(cache=True, parallel=True)
-def update_keys(points, normals, R, rlen, dist, curv, cc, col, key, w, method, dbar, ids):
+def update_keys(points, normals, R, rlen, dist, curv, cc, col, key, w, method, dbar, ids, head,
+                nxt):
     """M_cc and the keys of the fans ``ids`` (after every fan of the round has its terms)."""
     for i in prange(ids.shape[0]):
         y = ids[i]
         cc[y] = point_cc(points, curv, y, R[y], rlen[y], dbar)
-        value = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, y)
+        value = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, head, nxt, y)
         key[y] = INF if rlen[y] == 0 else value
 
 

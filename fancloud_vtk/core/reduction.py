@@ -86,8 +86,11 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
         Entropy weights (see :func:`~fancloud_vtk.entropy`).
     method : {'entropy', 'error'}, default: 'entropy'
         ``'entropy'`` removes the point of lowest entropy; ``'error'`` the
-        point whose removal changes the surface least (its distance to the
-        plane of its ring; the paper's Figure 10b).
+        point whose removal changes the surface least (the paper's Figure
+        10b): the largest distance from the plane of its ring of the point
+        and of the removed points it carries (each removed point is carried
+        on by the nearest of the fans it was in; the paper's e(r) of
+        section 8, the maximum deviation of all descendants).
     colors : None, str or numpy.ndarray, optional
         Colours for the colour term (see :func:`~fancloud_vtk.entropy`).
     exact : bool, default: False
@@ -165,8 +168,12 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     ropen = np.ascontiguousarray(fc.open[perm])
     active = np.ones(n, bool)
     IN, nin, over = RK.build_in_lists(R, rlen, IN_WIDTH, numba.get_num_threads())
+    # method 'error': the removed points each remaining point carries (_reduction_kernels)
+    m_carry = n if method == "error" else 0
+    head = np.full(m_carry, -1, np.int64)
+    nxt = np.full(m_carry, -1, np.int64)
     dist, curv, cc, colt, key = RK.init_state(pts, nrm, col, R, rlen, np.array(w), dbar,
-                                              METHODS[method])
+                                              METHODS[method], head, nxt)
     n_remove = n - target
     # the logs (np.empty: pages that a reduction without logs never writes cost nothing)
     order = np.empty(n_remove, np.int64)
@@ -191,7 +198,7 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
                 pts, nrm, col, wa, dbar, METHODS[method], R, rlen, ropen, active, IN, nin,
                 over, dist, curv, cc, colt, key, heap, hpos, counters, chunk, target, order,
                 detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off, ent_ring,
-                stamp)
+                stamp, head, nxt)
             _report(progress, counters[1] / max(n_remove, 1), "reduction")
             if counters[1] == before:
                 break  # every remaining point is blocked
@@ -199,7 +206,7 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
         log = _Logs(rem_ring, ent_x, ent_open, ent_off, ent_ring)
         _rounds(pts, nrm, col, wa, dbar, METHODS[method], R, rlen, ropen, active, IN, nin, over,
                 dist, curv, cc, colt, key, counters, n_remove, order, detail, rem_off, rem_open,
-                log_off, log, stamp, progress, logs)
+                log_off, log, stamp, progress, head, nxt, logs)
         rem_ring, ent_x, ent_open, ent_off, ent_ring = (log.rem_ring, log.ent_x, log.ent_open,
                                                         log.ent_off, log.ent_ring)
     r = int(counters[1])
@@ -311,7 +318,7 @@ class _Logs:
 
 def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, over, dist, curv,
             cc, colt, key, counters, n_remove, order, detail, rem_off, rem_open, log_off, logs,
-            stamp, progress, write_logs=True):
+            stamp, progress, head, nxt, write_logs=True):
     """The reduction in rounds (see ``_reduction_kernels``): each round accepts, lowest key
     first, the candidates whose neighbourhoods do not overlap, and removes them together.
     ``write_logs`` False: the rounds record nothing (the rare one-at-a-time fallback still
@@ -337,7 +344,7 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
                                     nin, over, dist, curv, cc, colt, key, heap, hpos, counters,
                                     1, n - n_remove, order, detail, rem_off, logs.rem_ring,
                                     rem_open, log_off, logs.ent_x, logs.ent_open, logs.ent_off,
-                                    logs.ent_ring, stamp)
+                                    logs.ent_ring, stamp, head, nxt)
             # the log arrays it may have grown
             logs.rem_ring, logs.ent_x, logs.ent_open, logs.ent_off, logs.ent_ring = grown
             continue
@@ -349,15 +356,15 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
                          int(buf_off[-1]) * width)
         buf, buf_len, buf_open, buf_terms, ok, frames = RK.reform_batch(
             pts, nrm, col, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-            write_logs, cc, w, method, key_now)
+            write_logs, cc, w, method, key_now, head, nxt)
         changed = RK.commit_batch(
             R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len, buf_open,
             buf_terms, dist, curv, colt, key_now, ok, frames, n_remove - counters[1], counters,
             order, detail, rem_off, logs.rem_ring, rem_open, log_off, logs.ent_x, logs.ent_open,
-            logs.ent_off, logs.ent_ring, stamp, write_logs)
+            logs.ent_off, logs.ent_ring, stamp, pts, head, nxt, write_logs)
         if not key_now:
             RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, w, method, dbar,
-                           changed)
+                           changed, head, nxt)
         _report(progress, counters[1] / max(n_remove, 1), "reduction")
 
 
