@@ -621,6 +621,13 @@ def load_quadric_normal():
     return _quadric_reducer("meshing_decimation_quadric_edge_collapse", **QUADRIC_SHAPE)
 
 
+def load_quadric_subset():
+    """pymeshlab quadric edge collapse keeping input vertices (optimal placement off): every
+    collapse keeps one of its edge's ends, so the result is a subset of the input points, as
+    ours is; it shows what keeping input points costs a quadric decimator."""
+    return _quadric_reducer("meshing_decimation_quadric_edge_collapse", optimalplacement=False)
+
+
 def load_quadric_texture():
     """pymeshlab's texture-aware quadric edge collapse (needs per-wedge texture coords)."""
     return _quadric_reducer("meshing_decimation_quadric_edge_collapse_with_texture")
@@ -702,6 +709,10 @@ REDUCE_METHODS = {m.name: m for m in (
            f"{_HERE}:load_quadric_normal",
            "meshing_decimation_quadric_edge_collapse(targetfacenum=..., "
            + ", ".join(f"{k}={v}" for k, v in QUADRIC_SHAPE.items()) + ")", new_points=True),
+    Method("quadric-subset", "pymeshlab quadric edge collapse, input vertices",
+           f"{_HERE}:load_quadric_subset",
+           "meshing_decimation_quadric_edge_collapse(targetfacenum=..., optimalplacement=False) "
+           "(every collapse keeps an end of its edge: a subset of the input points, as ours)"),
     Method("quadric-texture", "pymeshlab quadric edge collapse with texture",
            f"{_HERE}:load_quadric_texture",
            "meshing_decimation_quadric_edge_collapse_with_texture(targetfacenum=...) (the "
@@ -718,6 +729,7 @@ REDUCE_METHODS = {m.name: m for m in (
 #: what a missing reduction method needs
 REDUCE_REQUIRES = {"fast-simplification": "fast-simplification (pip install "
                    "fast-simplification)", "quadric": "pymeshlab", "quadric-normal": "pymeshlab",
+                   "quadric-subset": "pymeshlab",
                    "quadric-texture": "pymeshlab", "poisson-disk": "pymeshlab",
                    "vtk-quadric": "vtk", **{k: "fancloud_vtk.reduce" for k in
                                             ("ours-uniform", "ours-shape", "ours-colour",

@@ -414,3 +414,30 @@ def test_reduce_colour_rows_one_per_colour_setting():
     (only,) = _colour_rows(ds, data, 0.42, judged=True)
     assert only["figure"] == "colour: error ours (1,1,50,1) / best peer"
     assert only["measured"] == "n/a" and only["verdict"].startswith("not measured: not run")
+
+
+def test_reduce_quality_rows_add_the_error_method_and_the_subset_reference():
+    """Mean Hausdorff rows: the figure's (ours (1,1,50,0)), ours error against the same target,
+    and the quadric collapse on input vertices as a reference without one; only those that
+    ran."""
+    from fancloud_vtk.bench_reduce import _quality_rows
+
+    def result(method, mean, feature=1e-4):
+        return {"method": method, "label": method, "keep": 0.176, "status": "ok",
+                "message": "", "measures": {"hausdorff_mean": mean, "feature_mean": feature}}
+
+    ds = {"results": [result("ours-shape", 4e-4), result("ours-error", 1.8e-4),
+                      result("quadric-subset", 1.5e-4), result("quadric", 1e-4)]}
+    rows = {r["figure"]: r for r in _quality_rows(ds, "bunny", 0.176, judged=True)}
+    shape = rows["quality: mean Hausdorff ours (1,1,50,0) / quadric edge collapse"]
+    assert float(shape["measured"]) == pytest.approx(4.0) and shape["verdict"] == "NO"
+    error = rows["quality: mean Hausdorff ours error / quadric edge collapse"]
+    assert float(error["measured"]) == pytest.approx(1.8) and error["target"] == "<= 1.5"
+    subset = rows["reference: mean Hausdorff quadric edge collapse on input vertices / "
+                  "quadric edge collapse"]
+    assert float(subset["measured"]) == pytest.approx(1.5)
+    assert subset["target"] == subset["verdict"] == ""
+    assert "quadric-subset 0.00015" in subset["parameters"]
+    ds["results"] = [r for r in ds["results"] if r["method"] not in ("ours-error",
+                                                                       "quadric-subset")]
+    assert len(_quality_rows(ds, "bunny", 0.176, judged=True)) == 2
