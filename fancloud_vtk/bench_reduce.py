@@ -555,8 +555,8 @@ def curves_chart(res: dict, path: str) -> str:
     names = list(dict.fromkeys(r["method"] for ds in datasets for r in ds["results"]))
     from matplotlib import colormaps
 
-    tab10 = colormaps["tab10"]
-    style = {name: (tab10(i % 10), "o" if name.startswith("ours") else "s")
+    tab20 = colormaps["tab20"]  # the dark shades first (tab10's), then the light ones
+    style = {name: (tab20((2 * i) % 20 + (i // 10) % 2), "o" if name.startswith("ours") else "s")
              for i, name in enumerate(names)}
     labels = {r["method"]: r["label"] for ds in datasets for r in ds["results"]}
     for row, ds in zip(axes, datasets, strict=True):
