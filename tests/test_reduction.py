@@ -391,8 +391,7 @@ def test_error_key_counts_the_removed_points_a_point_carries():
     ring = np.arange(1, 7, dtype=np.int32)
     head = np.full(len(pts), -1, np.int64)
     nxt = np.full(len(pts), -1, np.int64)
-    none = np.zeros(0, np.int64)
-    assert _deviation(pts, nrm, 0, ring, 6, head, nxt, none, none, 0) == 0.0
+    assert _deviation(pts, nrm, 0, ring, 6, head, nxt) == 0.0
     # 9 carries 7 and 8; 9 goes: it and what it carried pass to 0 or 1, the nearer
     head[9], nxt[7], nxt[8] = 7, 8, -1
     _pass_on(pts, head, nxt, 9, np.array([0, 1]), 2)
@@ -404,12 +403,20 @@ def test_error_key_counts_the_removed_points_a_point_carries():
             d = nxt[d]
         carried[y] = sorted(got)
     assert carried == {0: [7, 8], 1: [9], 9: []}
-    assert _deviation(pts, nrm, 0, ring, 6, head, nxt, none, none, 0) == pytest.approx(0.5)
-    # points a removal of this round is about to pass on count too
-    assert _deviation(pts, nrm, 1, ring[:0], 0, head, nxt, none, none, 0) == 0.0  # no ring
-    extra, to = np.array([7]), np.array([0])
-    head[0] = -1
-    assert _deviation(pts, nrm, 0, ring, 6, head, nxt, extra, to, 1) == pytest.approx(0.3)
+    assert _deviation(pts, nrm, 0, ring, 6, head, nxt) == pytest.approx(0.5)
+    assert _deviation(pts, nrm, 1, ring[:0], 0, head, nxt) == 0.0  # no ring
+    # without the entropy path's lists (empty arrays) only the point itself counts
+    empty = np.zeros(0, np.int64)
+    assert _deviation(pts, nrm, 9, ring, 6, empty, empty) == pytest.approx(0.05)
+    # 0 goes with no fan around it: 0 and what it carried pass to the nearer of its ring's
+    # first two points 1 and 2 (1 for each: a tie for 0 goes to the smaller index)
+    _pass_on(pts, head, nxt, 0, ring, 2)
+    d, got = head[1], []
+    while d >= 0:
+        got.append(int(d))
+        d = nxt[d]
+    assert head[0] == -1 and head[2] == -1 and sorted(got) == [0, 7, 8, 9]
+    assert _deviation(pts, nrm, 1, ring[1:], 5, head, nxt) == pytest.approx(0.5)
 
 
 def test_error_reduction_bounds_the_deviation_of_the_removed_points():

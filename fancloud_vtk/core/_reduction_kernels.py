@@ -189,11 +189,10 @@ def _plane_distance(fr, points, d):
 
 
 @njit(cache=True)
-def _deviation(points, normals, x, ring, k, head, nxt, extra, extra_to, n_extra):
+def _deviation(points, normals, x, ring, k, head, nxt):
     """The cost of removing x with the ring ``ring[:k]``: the largest distance from the
-    ring's plane of x, of the points x carries (``head``/``nxt``; none if they are empty)
-    and of the ``extra[i]`` with ``extra_to[i] == x`` (a removal of this round passes
-    them to x)."""
+    ring's plane of x and of the points x carries (``head``/``nxt``; none if they are
+    empty)."""
     if k == 0:
         return 0.0
     fr = local_frame(points, ring, k, normals[x, 0], normals[x, 1], normals[x, 2])
@@ -203,9 +202,6 @@ def _deviation(points, normals, x, ring, k, head, nxt, extra, extra_to, n_extra)
         while d >= 0:
             e = max(e, _plane_distance(fr, points, d))
             d = nxt[d]
-    for i in range(n_extra):
-        if extra_to[i] == x:
-            e = max(e, _plane_distance(fr, points, extra[i]))
     return e
 
 
@@ -234,23 +230,6 @@ def _heirs_of(R, rlen, IN, nin, p):
     if nin[p] > 0:
         return IN[p], nin[p]
     return R[p], rlen[p]
-
-
-@njit(cache=True)
-def _planned_heirs(points, head, nxt, p, cands, m, ext, ext_to):
-    """p and the points it carries, each with its heir among ``cands[:m]``, into ``ext``
-    and ``ext_to`` (grown when short). Returns (count, ext, ext_to)."""
-    n_ext = 0
-    d = p
-    while d >= 0:
-        if n_ext == ext.shape[0]:
-            ext = _grow(ext, 2 * n_ext + 8)
-            ext_to = _grow(ext_to, 2 * n_ext + 8)
-        ext[n_ext] = d
-        ext_to[n_ext] = _heir(points, cands, m, d)
-        n_ext += 1
-        d = head[p] if d == p else nxt[d]
-    return n_ext, ext, ext_to
 
 
 @njit(cache=True)
@@ -441,7 +420,7 @@ def _grow(arr, need):
 @njit(cache=True)
 def _key(points, normals, R, rlen, dist, curv, cc, col, w, method, head, nxt, x):
     if method == METHOD_ERROR:
-        return _deviation(points, normals, x, R[x], rlen[x], head, nxt, head[:0], head[:0], 0)
+        return _deviation(points, normals, x, R[x], rlen[x], head, nxt)
     return w[0] * dist[x] + w[1] * curv[x] + w[2] * cc[x] + w[3] * col[x]
 
 
@@ -850,16 +829,16 @@ def accept_batch(cands, R, rlen, IN, nin, over, mark, tag):
 
 @njit(cache=True, parallel=True)
 def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-                 with_frames, cc, w, method, key_now, head, nxt):
+                 with_frames, cc, w, key_now):
     """Phase A: the new fans of every point whose fan contains an accepted point.
 
     Returns (buf, buf_len, buf_open, buf_terms, ok, frames): buf[buf_off[i] +
     j] the new ring of IN[acc[i], j] and buf_terms[...] the entropy terms
     (dist, curv, col) of that fan (they depend on its ring only, and a fan
-    changes at most once a round), and with ``key_now`` its key as
-    ``update_keys`` would find it (``method`` 'error', or no M_cc weight:
-    then the key needs no other fan's new terms); ok[i] False if some fan cannot be
-    re-formed; frames[i] the detail of acc[i] (offset and normal in its
+    changes at most once a round), and with ``key_now`` its entropy key as
+    ``update_keys`` would find it (no M_cc weight: then the key needs no
+    other fan's new terms; method 'error' keys come in ``_apply``); ok[i]
+    False if some fan cannot be re-formed; frames[i] the detail of acc[i] (offset and normal in its
     ring's frame; only ``with_frames``). The work is split in ``n_chunks``
     parts.
     """
@@ -874,14 +853,8 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
     frames = np.empty((n_acc if with_frames else 0, 6))
     for ch in prange(n_chunks):
         cand, xs, ys, ordr, hull = fan_scratch(width)
-        ext = np.empty(16, np.int64)
-        ext_to = np.empty(16, np.int64)
         for i in range((n_acc * ch) // n_chunks, (n_acc * (ch + 1)) // n_chunks):
             p = acc[i]
-            n_ext = 0
-            if key_now and method == METHOD_ERROR:
-                row, m_h = _heirs_of(R, rlen, IN, nin, p)
-                n_ext, ext, ext_to = _planned_heirs(points, head, nxt, p, row, m_h, ext, ext_to)
             for j in range(nin[p]):
                 x = IN[p, j]
                 h, op = _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, ordr,
@@ -896,12 +869,8 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
                 buf_terms[b, 0] = d
                 buf_terms[b, 1] = cu
                 buf_terms[b, 2] = co
-                if key_now:
-                    if method == METHOD_ERROR:
-                        buf_terms[b, 3] = _deviation(points, normals, x, buf[b], h, head,
-                                                     nxt, ext, ext_to, n_ext)
-                    else:  # as _key (w[2] is 0, cc[x] unchanged this round)
-                        buf_terms[b, 3] = w[0] * d + w[1] * cu + w[2] * cc[x] + w[3] * co
+                if key_now:  # as _key (w[2] is 0, cc[x] unchanged this round)
+                    buf_terms[b, 3] = w[0] * d + w[1] * cu + w[2] * cc[x] + w[3] * co
             if not with_frames:
                 continue
             k = rlen[p]
@@ -981,10 +950,15 @@ def _write_logs(R, rlen, ropen, IN, nin, acc, frames, idx, rem_at, ent_at, ring_
 
 @njit(cache=True, parallel=True)
 def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
-           buf_open, buf_terms, dist, curv, col, key_now, stamp, tag, n_chunks, points, head,
-           nxt):
+           buf_open, buf_terms, dist, curv, col, key_now, stamp, tag, n_chunks, points, normals,
+           head, nxt):
     """Make the removals ``acc[idx]``: fans re-formed (with their entropy terms), in-lists
     kept; the changed fans, once.
+
+    Method 'error' (``head`` not empty): p and the points it carried pass to
+    their heirs, then the changed fans get their keys (:func:`_deviation`);
+    heirs and changed fans are in p's neighbourhood, which no other removal
+    of the round touches.
 
     The same result as making them one after the other, in two parallel
     passes. The accepted points' neighbourhoods (p, its ring, its in-list)
@@ -1041,7 +1015,9 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
             dist[x] = buf_terms[b, 0]
             curv[x] = buf_terms[b, 1]
             col[x] = buf_terms[b, 2]
-            if key_now:
+            if head.shape[0] > 0:
+                key[x] = INF if k == 0 else _deviation(points, normals, x, buf[b], k, head, nxt)
+            elif key_now:
                 key[x] = INF if k == 0 else buf_terms[b, 3]
         ev_n[j] = e - ev_off[j]
     n = nin.shape[0]
@@ -1073,7 +1049,7 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
 def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len,
                  buf_open, buf_terms, dist, curv, col, key_now, ok, frames, limit, counters,
                  order, detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off,
-                 ent_ring, stamp, points, head, nxt, write_logs=True):
+                 ent_ring, stamp, points, normals, head, nxt, write_logs=True):
     """Phase B: log (in parallel) and apply (in index order) the removals a round makes.
 
     A point whose fans cannot all be re-formed stays, its key set to inf.
@@ -1095,7 +1071,7 @@ def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, 
     counters[5] += 1
     return _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
                   buf_open, buf_terms, dist, curv, col, key_now, stamp, counters[5],
-                  get_num_threads() if m > 64 else 1, points, head, nxt)
+                  get_num_threads() if m > 64 else 1, points, normals, head, nxt)
 
 
 @njit(cache=True, parallel=True)

@@ -356,12 +356,12 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
                          int(buf_off[-1]) * width)
         buf, buf_len, buf_open, buf_terms, ok, frames = RK.reform_batch(
             pts, nrm, col, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-            write_logs, cc, w, method, key_now, head, nxt)
+            write_logs, cc, w, key_now)
         changed = RK.commit_batch(
             R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len, buf_open,
             buf_terms, dist, curv, colt, key_now, ok, frames, n_remove - counters[1], counters,
             order, detail, rem_off, logs.rem_ring, rem_open, log_off, logs.ent_x, logs.ent_open,
-            logs.ent_off, logs.ent_ring, stamp, pts, head, nxt, write_logs)
+            logs.ent_off, logs.ent_ring, stamp, pts, nrm, head, nxt, write_logs)
         if not key_now:
             RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, w, method, dbar,
                            changed, head, nxt)
