@@ -281,3 +281,31 @@ def test_a_widening_the_retries_do_not_close_is_undone(monkeypatch):
     assert boundary_loops(out) == []
     out, _ = ME._insert_unused(fc, out)
     assert len(out) == 2 * fc.n_points - 4
+
+
+def test_fill_fits_accepts_a_disk_and_refuses_the_three_ways_a_fill_can_break():
+    from fancloud_vtk.core import _mesh_kernels as MK
+
+    # a square hole 0-1-2-3 (the mesh's boundary half-edges run 0->1->2->3->0) in a mesh
+    # whose only triangle, 0-2-4, joins 0 and 2 elsewhere
+    loop = np.array([0, 1, 2, 3], np.int64)
+    mesh = np.array([[0, 2, 4]], np.int64)
+    vt_off, vt = MK.vertex_triangles(mesh, 5)
+    plain = np.zeros((0, 3), np.int64)
+    p_off, p_vt = MK.vertex_triangles(plain, 5)
+
+    def fits(tris, triangles, off, v):
+        return bool(MK.fill_fits(np.array(tris, np.int64), loop, triangles, off, v))
+
+    # the fill runs every loop edge backwards; its inner edge 1-3 has both triangles
+    disk = [[1, 0, 3], [3, 2, 1]]
+    assert fits(disk, plain, p_off, p_vt)
+    assert fits(disk, mesh, vt_off, vt)  # 1-3 is nowhere in the mesh
+    # the other diagonal, 0-2, is an edge of the mesh already: non-manifold
+    other = [[0, 3, 2], [2, 1, 0]]
+    assert fits(other, plain, p_off, p_vt)
+    assert not fits(other, mesh, vt_off, vt)
+    # a loop edge (2->3, to be run 3->2) that no fill triangle covers
+    assert not fits([[1, 0, 3]], plain, p_off, p_vt)
+    # an inner edge with one triangle: 1-3 once, and 3-1 missing
+    assert not fits([[1, 0, 3], [3, 2, 4], [4, 2, 1]], plain, p_off, p_vt)

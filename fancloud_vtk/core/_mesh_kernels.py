@@ -1666,47 +1666,48 @@ def star_fits(points, normals, loop, p, triangles, vt_off, vt):
 
 
 @njit(cache=True)
+def _runs(tris, a, b):
+    """Whether a triangle of ``tris`` runs the edge a -> b."""
+    for t in range(tris.shape[0]):
+        for i in range(3):
+            if tris[t, i] == a and tris[t, (i + 1) % 3] == b:
+                return True
+    return False
+
+
+@njit(cache=True)
+def _loop_runs(loop, a, b):
+    """Whether the loop runs the edge a -> b."""
+    m = loop.shape[0]
+    for j in range(m):
+        if loop[j] == a and loop[(j + 1) % m] == b:
+            return True
+    return False
+
+
+@njit(cache=True)
 def fill_fits(tris, loop, triangles, vt_off, vt):
     """Whether triangles filling a loop make a disk that joins the mesh manifoldly.
 
     Every loop edge a -> b must be run b -> a by a fill triangle; every
     inner edge of the fill must have two fill triangles and must not be in
     the mesh (``triangles``, with the triangles at each vertex in
-    ``vt_off``/``vt``).
+    ``vt_off``/``vt``). The searches return at their first hit: written as
+    flags set in full loops, LLVM 14's loop vectorizer (numba 0.57-0.60)
+    aborts the process compiling them for some CPUs (AMD Zen 3, generic).
     """
     m = loop.shape[0]
-    k = tris.shape[0]
     for j in range(m):
-        a = loop[j]
-        b = loop[(j + 1) % m]
-        found = False
-        for t in range(k):
-            for i in range(3):
-                if tris[t, i] == b and tris[t, (i + 1) % 3] == a:
-                    found = True
-        if not found:
+        if not _runs(tris, loop[(j + 1) % m], loop[j]):
             return False
-    for t in range(k):
+    for t in range(tris.shape[0]):
         for i in range(3):
             x = tris[t, i]
             y = tris[t, (i + 1) % 3]
-            rev = False  # y -> x on the loop
-            fwd = False
-            for j in range(m):
-                if loop[j] == y and loop[(j + 1) % m] == x:
-                    rev = True
-                if loop[j] == x and loop[(j + 1) % m] == y:
-                    fwd = True
-            if rev:
+            if _loop_runs(loop, y, x):
                 continue
-            if not fwd:
-                twin = False
-                for s in range(k):
-                    for q in range(3):
-                        if tris[s, q] == y and tris[s, (q + 1) % 3] == x:
-                            twin = True
-                if not twin:
-                    return False  # an inner edge with one triangle: not a disk
+            if not _loop_runs(loop, x, y) and not _runs(tris, y, x):
+                return False  # an inner edge with one triangle: not a disk
             if has_edge(triangles, vt_off, vt, x, y):
                 return False  # an inner edge that exists elsewhere: non-manifold
     return True
