@@ -150,6 +150,15 @@ FAN_PARAMS: tuple[Param, ...] = (
         "retry failed fans in the plane rotated by 90 degrees about the gap's axis (Figure 5)",
     ),
     Param(
+        "reach", "float", 5.0,
+        "sampling-aware limit (an addition to the paper): a candidate farther than reach "
+        "times the point's local spacing (the distance of its k-th nearest neighbour, "
+        "corrected for the angle the k nearest cover; the larger of the two points' "
+        "spacings for a fan still open) never enters a fan, which stays open: gaps in the "
+        "sampling and stray clusters are not bridged; 0: off",
+        range=(0.0, 1e6),
+    ),
+    Param(
         "orient", "bool", True,
         "orient normals consistently by propagation (outward on closed surfaces) when the "
         "input has no normals",
@@ -178,6 +187,14 @@ MESH_PARAMS: tuple[Param, ...] = (
         "largest boundary loop, in edges, that counts as a hole to close (a loop with no open "
         "fan and unused points of closed fans inside is closed whatever its size)",
         range=(3, 100_000),
+    ),
+    Param(
+        "max_hole_diameter", "float", 6.0,
+        "largest hole along open fans closed, in local spacings (an addition to the paper): "
+        "a loop a quarter of whose points have open fans and whose bounding-box diagonal "
+        "exceeds this many times the median fan-ring distance of its points is a gap of the "
+        "sampling and stays open; 0: no limit",
+        range=(0.0, 1e6),
     ),
     Param(
         "self_intersections", "bool", True,

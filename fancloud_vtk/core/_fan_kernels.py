@@ -480,10 +480,67 @@ def _fan_one(points, p, pool, dist, n_sorted, n_avail, m_pool, k, max_gap, rule,
     return kk, STATUS_OPEN, nx, ny, nz
 
 
+@njit(cache=True)
+def local_spacing(points, p, pool, k, ang, scratch):
+    """p's local spacing: the distance of its k-th nearest neighbour (``pool`` in order of
+    distance), corrected for the angle its k nearest cover around it.
+
+    Where p's k nearest fill only part of the circle around it (a point on a
+    boundary: a half plane; a corner: a quarter), its k-th nearest lies
+    farther than inside the surface, by the square root of the part covered.
+    That part is ``(2 pi - g) / (2 pi - pi / 2)`` (at most 1) with g the
+    largest angular gap of the k nearest in their least-squares plane, so
+    the spacing of a point on a straight boundary is about that of the
+    points inside.
+    """
+    nx, ny, nz = _plane_normal(points, p, pool, k)
+    _angles(points, p, pool, k, nx, ny, nz, ang)
+    ids = scratch[0]
+    srt = scratch[1]
+    for i in range(k):
+        ids[i] = i
+    _sort_by_angle(ang, ids, k, srt)
+    g, _ = _max_gap(ang, srt, k)
+    q = pool[k - 1]
+    dk2 = 0.0
+    for a in range(3):
+        d = points[q, a] - points[p, a]
+        dk2 += d * d
+    f = (TWO_PI - g) / (TWO_PI - 0.5 * np.pi)
+    if f > 1.0:
+        f = 1.0
+    if f < 0.05:
+        f = 0.05
+    return np.sqrt(dk2 * f)
+
+
+@njit(cache=True)
+def reach_limit(points, p, pool, m, k, lim):
+    """Number of the candidates ``pool[:m]`` (in order of distance) within distance ``lim``
+    of p, at least k: the sampling-aware limit of a fan (issue 22).
+
+    A neighbour much farther than the local sampling allows never enters a
+    fan: across a gap of the sampling, towards a stray cluster, the fan
+    stays open instead.
+    """
+    lim2 = lim * lim
+    cnt = k
+    while cnt < m:
+        q = pool[cnt]
+        d2 = 0.0
+        for a in range(3):
+            d = points[q, a] - points[p, a]
+            d2 += d * d
+        if d2 > lim2:
+            break
+        cnt += 1
+    return cnt
+
+
 @njit(cache=True, parallel=True)
 def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, max_gap,
-                   rule, rotate, n_normal, n_sort, max_block, n_chunks, ring_tab, counts, status,
-                   normals):
+                   rule, rotate, n_normal, n_sort, max_block, n_chunks, reach, ring_tab, counts,
+                   status, normals, spacing):
     """Stage 1: fans of the points of cells ``c_lo:c_hi``, neighbours from the grid.
 
     ``points`` are in cell order (see :mod:`._grid_kernels`). Each point's
@@ -493,7 +550,10 @@ def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, ma
     ``cap`` candidates gets its final fan here (closed, rotated or open);
     one with fewer, whose fan needs more candidates, gets STATUS_RETRY.
     The work is split into ``n_chunks`` parts (a few per thread); the result
-    does not depend on it.
+    does not depend on it. With ``reach > 0`` only candidates within
+    ``reach`` times the distance of the k-th nearest neighbour are tried
+    (see :func:`local_spacing` and :func:`reach_limit`). ``spacing[p]``
+    receives p's local spacing (points sent to stage 2 get theirs there).
     """
     n_cells = c_hi - c_lo
     n_chunks = max(1, min(n_cells, n_chunks))
@@ -536,10 +596,20 @@ def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, ma
                 if n_sorted < n_normal:
                     G.select_sorted(pool, dist, n_sorted, n_normal, m_cert)
                     n_sorted = n_normal
-                m_pool = min(cap, m_cert)
+                final = m_cert >= cap
+                m_lim = m_cert
+                if reach > 0.0:
+                    spacing[p] = local_spacing(points, p, pool, k, ang, scratch)
+                    lim2 = (reach * spacing[p]) ** 2
+                    m_lim = 0
+                    for a in range(m_cert):
+                        m_lim += dist[a] <= lim2
+                    # every point within the limit is certified: the pool is complete
+                    final = m_lim >= cap or r * r >= lim2
+                m_pool = min(cap, m_lim)
                 cnt, s, nx, ny, nz = _fan_one(
                     points, p, pool, dist, n_sorted, m_cert, m_pool, k, max_gap, rule, rotate,
-                    m_cert >= cap, n_normal, ang, scratch, ring_out,
+                    final, n_normal, ang, scratch, ring_out,
                 )
                 status[p] = s
                 counts[p] = cnt
@@ -551,12 +621,14 @@ def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, ma
 
 
 @njit(cache=True, parallel=True)
-def fans_from_pool(points, which, pools, k, max_gap, rule, rotate, n_normal, ring_tab, counts,
-                   status, normals):
+def fans_from_pool(points, which, pools, k, max_gap, rule, rotate, n_normal, reach, ring_tab,
+                   counts, status, normals, spacing):
     """Stage 2: fans of the points ``which`` from exact candidate pools.
 
     ``pools[i]`` are the nearest neighbours of ``which[i]`` (self first),
-    in order of distance, padded with a negative index.
+    in order of distance, padded with a negative index. ``reach`` and
+    ``spacing`` as in :func:`fans_from_grid` (with ``reach`` 0 the pools
+    are taken as they are and ``spacing`` is left alone).
     """
     width = pools.shape[1]
     n = which.shape[0]
@@ -577,6 +649,9 @@ def fans_from_pool(points, which, pools, k, max_gap, rule, rotate, n_normal, rin
                 if q >= 0 and q != p:
                     pool[m] = q
                     m += 1
+            if reach > 0.0 and m >= k:
+                spacing[p] = local_spacing(points, p, pool, k, ang, scratch)
+                m = reach_limit(points, p, pool, m, k, reach * spacing[p])
             cnt, s, nx, ny, nz = _fan_one(
                 points, p, pool, pool_dist, m, m, m, k, max_gap, rule, rotate, True, n_normal,
                 ang, scratch, ring_out,

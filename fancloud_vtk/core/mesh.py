@@ -95,6 +95,7 @@ def fan_cloud_to_mesh(
     rings: str = "delaunay",
     close_holes: bool = True,
     max_hole: int = 32,
+    max_hole_diameter: float = 6.0,
     self_intersections: bool = True,
 ) -> TriangleMesh:
     """A consistently oriented 2-manifold triangle mesh from a fan cloud (section 4).
@@ -121,7 +122,16 @@ def fan_cloud_to_mesh(
     max_hole : int, default: 32
         Largest boundary loop (in edges) that counts as a hole to close;
         a loop with no open fan and unused points of closed fans inside is
-        closed whatever its size.
+        closed whatever its number of edges.
+    max_hole_diameter : float, default: 6.0
+        Largest hole along open fans closed, in local spacings (an addition
+        to the paper): a loop of which at least a quarter of the points have
+        open fans and whose bounding-box diagonal exceeds this many times
+        the median spacing of its points (each point's median distance to
+        its fan neighbours) is a gap of the sampling and stays open. (Loops
+        through closed fans are surface that the fans claim, left by the
+        growing: they are closed.)
+        A loop of three edges is always closed. ``0``: no limit.
     self_intersections : bool, default: True
         Count self-intersecting triangle pairs in ``stats`` (costs about as
         much as the rest on large meshes).
@@ -171,6 +181,12 @@ def fan_cloud_to_mesh(
         raise ValueError(f"rings must be 'delaunay' or 'fans', got {rings!r}")
     if isinstance(max_hole, bool) or not isinstance(max_hole, int | np.integer) or max_hole < 3:
         raise ValueError(f"max_hole must be an integer of at least 3 edges, got {max_hole!r}")
+    number = int | float | np.number
+    if isinstance(max_hole_diameter, bool) or not isinstance(max_hole_diameter, number):
+        raise TypeError(f"max_hole_diameter must be a number, got {max_hole_diameter!r}")
+    max_hole_diameter = float(max_hole_diameter)
+    if not 0.0 <= max_hole_diameter <= 1e6:
+        raise ValueError(f"max_hole_diameter must be between 0 and 1e6, got {max_hole_diameter}")
     timings = {}
     stats = {}
     # Work on the points in a spatially coherent order (the fan grid's cell
@@ -256,7 +272,8 @@ def fan_cloud_to_mesh(
     stats["points_inserted"] = 0
     if close_holes:
         cand = (tri, count, edge_uv, edge_off, edge_tri, v_edge_off, v_edges)
-        triangles, closed, inserted = _close_holes(fancloud, triangles, cand, max_hole)
+        triangles, closed, inserted = _close_holes(fancloud, triangles, cand, max_hole,
+                                                   max_hole_diameter)
         split = 1
         while split:  # two points over one triangle: the second goes in next round
             triangles, split = _insert_unused(fancloud, triangles)
@@ -300,7 +317,40 @@ def _spatial_order(fc: FanCloud):
 # -- stages --------------------------------------------------------------------
 
 
-def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
+def _ring_spacing(fc: FanCloud) -> np.ndarray:
+    """Each point's local spacing: the median distance to its fan neighbours."""
+    src = np.repeat(np.arange(fc.n_points), fc.fan_sizes)
+    d = np.linalg.norm(fc.points[fc.ring] - fc.points[src], axis=1)
+    order = np.lexsort((d, src))
+    d = d[order]
+    sizes = fc.fan_sizes
+    start = fc.offsets[:-1]
+    mid = start + np.maximum(sizes - 1, 0) // 2
+    out = np.zeros(fc.n_points)
+    has = sizes > 0
+    out[has] = 0.5 * (d[mid[has]] + d[mid[has] + (sizes[has] % 2 == 0)])
+    return out
+
+
+def _loop_small(fc: FanCloud, spacing, loop_off, loop_verts, max_diameter) -> np.ndarray:
+    """Per loop: its bounding-box diagonal is at most max_diameter median spacings."""
+    sizes = np.diff(loop_off)
+    if max_diameter <= 0.0:
+        return np.ones(len(sizes), bool)
+    starts = loop_off[:-1]
+    p = fc.points[loop_verts]
+    diag = np.linalg.norm(
+        np.maximum.reduceat(p, starts, axis=0) - np.minimum.reduceat(p, starts, axis=0), axis=1
+    )
+    s = spacing[loop_verts]
+    lid = np.repeat(np.arange(len(sizes)), sizes)
+    order = np.lexsort((s, lid))
+    s = s[order]
+    med = 0.5 * (s[starts + (sizes - 1) // 2] + s[starts + sizes // 2])
+    return diag <= max_diameter * med
+
+
+def _close_holes(fc: FanCloud, triangles, cand, max_hole, max_diameter=0.0, rounds=4):
     """Triangulate the small boundary loops that are holes, not the real boundary.
 
     A loop with a single unused point inside gets a star around it; with
@@ -313,10 +363,13 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
     hole open, the result is the state after a round's fills with the
     largest area (the widening undone). ``cand`` holds the candidate triangles, their
     counts and their edges (``tri, count, edge_uv, edge_off, edge_tri,
-    v_edge_off, v_edges``, see :func:`fan_cloud_to_mesh`). Returns
+    v_edge_off, v_edges``, see :func:`fan_cloud_to_mesh`). A loop wider than
+    ``max_diameter`` local spacings is not taken when at least a quarter of
+    its points have open fans. Returns
     (triangles, holes closed, points inserted).
     """
     n = fc.n_points
+    spacing = _ring_spacing(fc)
     closed = inserted = 0
     widened = np.zeros(n, bool)  # around holes that were widened: any size goes
     # of the states before a widening, the one with the largest area: a widened hole that
@@ -339,8 +392,11 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, rounds=4):
         every = np.ones(len(sizes), bool)
         inside = np.zeros(len(sizes), bool)
         inside[list(_points_inside(fc, unused, loop_verts, sizes, every))] = True
+        # a wide loop along many open fans is a gap of the sampling: it stays open
+        n_open = np.add.reduceat(fc.open[loop_verts].astype(np.int64), starts)
+        small = _loop_small(fc, spacing, loop_off, loop_verts, max_diameter) | (4 * n_open < sizes)
         take = (sizes == 3) | (((sizes <= max_hole) | any_wide | inside) & ~any_open)
-        for i in np.flatnonzero(any_open & ((sizes <= max_hole) | any_wide) & (sizes > 3)):
+        for i in np.flatnonzero(any_open & ((sizes <= max_hole) | any_wide) & (sizes > 3) & small):
             take[i] = not _on_real_boundary(fc, loop_verts[starts[i] : loop_off[i + 1]])
         ids = np.flatnonzero(take)
         if len(ids) == 0:

@@ -1,0 +1,128 @@
+"""The failure classes of real data (issue 22), each on a small synthetic case.
+
+Gaps in the sampling, stray clusters, density ramps: the fans respect the
+local sampling (``reach``), so the mesh bridges nothing it should not.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from fancloud_vtk import build_fans, fan_cloud_to_mesh
+
+
+def _jittered_grid(nx, ny, h, seed, jitter=0.25):
+    rng = np.random.default_rng(seed)
+    x, y = np.meshgrid(np.arange(nx) * h, np.arange(ny) * h, indexing="ij")
+    xy = np.c_[x.ravel(), y.ravel()] + rng.uniform(-jitter, jitter, (nx * ny, 2)) * h
+    return np.c_[xy, 0.02 * np.sin(xy[:, 0] * 3) * h * nx]
+
+
+def _ring_pairs(fc):
+    src = np.repeat(np.arange(fc.n_points), fc.fan_sizes)
+    return src, fc.ring
+
+
+def test_a_gap_ten_spacings_wide_is_not_bridged():
+    h = 0.01
+    p = _jittered_grid(120, 60, h, seed=1)
+    x, y = p[:, 0], p[:, 1]
+    mid = 0.5 * (x.min() + x.max())
+    keep = np.abs(x - mid) > 5 * h  # a strip 10 spacings wide
+    p, y = p[keep], y[keep]
+    left = p[:, 0] < mid
+    fc = build_fans(p)
+    a, b = _ring_pairs(fc)
+    # where the strip meets the patch's own border, a point has a quarter plane of
+    # neighbours and its k-th nearest is 1.5 times farther: the limit grows with it
+    inner = (y > y.min() + 3 * h) & (y < y.max() - 3 * h)
+    across = (left[a] != left[b]) & inner[a] & inner[b]
+    assert not across.any(), "no fan reaches across the gap"
+    mesh = fan_cloud_to_mesh(fc)
+    t = mesh.triangles
+    side = left[t]
+    spans = ~(side.all(axis=1) | (~side).all(axis=1)) & inner[t].all(axis=1)
+    assert not spans.any(), "no triangle spans the gap"
+    near = (np.abs(p[:, 0] - mid) < 5.6 * h) & inner
+    assert fc.open[near].mean() > 0.8, "the points along the gap have open fans"
+    assert mesh.stats["unused_points"] == 0
+    assert mesh.stats["self_intersections"] == 0
+
+
+def test_a_hole_ten_spacings_across_stays_open():
+    h = 0.01
+    p = _jittered_grid(60, 60, h, seed=5)
+    c = p[:, :2].mean(axis=0)
+    r = np.linalg.norm(p[:, :2] - c, axis=1)
+    p = p[r > 5 * h]
+    mesh = fan_cloud_to_mesh(build_fans(p))
+    # fans of the rim may cut off chords shorter than reach spacings (the rim's k-th
+    # nearest lies farther: a half plane of neighbours), never the hole's middle
+    tri = p[mesh.triangles][:, :, :2] - c
+    a, b, d = tri[:, 0], tri[:, 1], tri[:, 2]
+
+    def cross(u, v):
+        return u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]
+
+    s1, s2, s3 = cross(b - a, -a), cross(d - b, -b), cross(a - d, -d)
+    covers = ((s1 > 0) & (s2 > 0) & (s3 > 0)) | ((s1 < 0) & (s2 < 0) & (s3 < 0))
+    assert not covers.any(), "no triangle covers the hole's centre"
+    assert mesh.stats["holes"] == 2, "the hole and the patch's border stay open"
+    assert mesh.stats["unused_points"] == 0
+
+
+def test_without_reach_the_gap_is_bridged():
+    """The paper's rule (reach=0) is kept for comparison: it does bridge the gap."""
+    h = 0.01
+    p = _jittered_grid(120, 60, h, seed=1)
+    mid = 0.5 * (p[:, 0].min() + p[:, 0].max())
+    p = p[np.abs(p[:, 0] - mid) > 5 * h]
+    left = p[:, 0] < mid
+    fc = build_fans(p, reach=0)
+    a, b = _ring_pairs(fc)
+    assert np.any(left[a] != left[b])
+
+
+def test_a_cluster_fifty_spacings_away_stays_separate():
+    h = 0.01
+    p = _jittered_grid(60, 60, h, seed=2)
+    rng = np.random.default_rng(3)
+    centre = p.mean(axis=0) + [0.0, 0.0, 50 * h]
+    cluster = centre + rng.normal(scale=h, size=(20, 3))
+    pts = np.vstack([p, cluster])
+    is_cluster = np.arange(len(pts)) >= len(p)
+    fc = build_fans(pts)
+    a, b = _ring_pairs(fc)
+    assert not np.any(is_cluster[a] != is_cluster[b]), "no fan joins the cluster and the plane"
+    mesh = fan_cloud_to_mesh(fc)
+    side = is_cluster[mesh.triangles]
+    assert np.all(side.all(axis=1) | (~side).all(axis=1))
+
+
+def test_a_density_ramp_gives_a_closed_mesh():
+    """Density varying 10x across a sphere: no false boundary, 2n - 4 triangles."""
+    rng = np.random.default_rng(4)
+    q = rng.normal(size=(60_000, 3))
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    w = 0.1 + 0.9 * (q[:, 0] + 1) / 2  # acceptance from 0.1 to 1 along x
+    p = q[rng.uniform(size=len(q)) < w][:12_000]
+    fc = build_fans(p)
+    assert fc.n_open == 0
+    mesh = fan_cloud_to_mesh(fc)
+    assert mesh.n_triangles == 2 * len(p) - 4
+    assert mesh.stats["boundary_edges"] == 0
+    assert mesh.stats["self_intersections"] == 0
+
+
+@pytest.mark.parametrize("reach", [-1.0, 0.5, float("nan")])
+def test_reach_out_of_range_is_refused(reach):
+    p = _jittered_grid(10, 10, 0.1, seed=0)
+    with pytest.raises(ValueError, match="reach"):
+        build_fans(p, reach=reach)
+
+
+def test_reach_must_be_a_number():
+    p = _jittered_grid(10, 10, 0.1, seed=0)
+    with pytest.raises(TypeError, match="reach"):
+        build_fans(p, reach="far")
