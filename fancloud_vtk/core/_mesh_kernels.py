@@ -868,8 +868,15 @@ def delaunay_rings(points, normals, offsets, ring, is_open, max_ring, n_chunks, 
     table = np.empty((n, max_ring), np.int64)
     n_chunks = max(1, min(n, n_chunks))
     ident = seq.shape[0] == 0
+    # the candidate buffers hold every point's two rings (at least 256 entries, as before)
+    cap = 256
+    for p in range(n):
+        two = 2
+        for a in range(offsets[p], offsets[p + 1]):
+            q = ring[a]
+            two += 1 + offsets[q + 1] - offsets[q]
+        cap = max(cap, two)
     for ch in prange(n_chunks):
-        cap = 256
         cand = np.empty(cap, np.int64)
         xs = np.empty(cap)
         ys = np.empty(cap)
@@ -1301,7 +1308,8 @@ def distinct_triangles(offsets, ring, is_open):
 
 @njit(cache=True)
 def _local_neighbours(tri, vt_off, vt, u, buf):
-    """Sorted distinct vertices w > u that share a triangle with u, into buf; their number."""
+    """Sorted distinct vertices w > u that share a triangle with u, into buf; their number
+    (-1 if buf is full: twice the triangles at u always fit)."""
     m = 0
     for i in range(vt_off[u], vt_off[u + 1]):
         t = vt[i]
@@ -1338,21 +1346,23 @@ def build_edges(tri, n):
     """
     m = tri.shape[0]
     vt_off, vt = csr_of(tri, n)
+    # a vertex in k triangles has at most 2k neighbours: the buffers fit the largest
+    width = 1
+    for u in range(n):
+        width = max(width, 2 * (vt_off[u + 1] - vt_off[u]))
     per = np.zeros(n + 1, np.int64)
     n_chunks = min(max(n, 1), 256)
     for ch in prange(n_chunks):
-        buf = np.empty(256, np.int64)
+        buf = np.empty(width, np.int64)
         for u in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
             per[u + 1] = _local_neighbours(tri, vt_off, vt, u, buf)
     for u in range(n):
-        if per[u + 1] < 0:
-            raise ValueError("a point with more than 256 triangle neighbours")
         per[u + 1] += per[u]
     n_edges = per[n]
     edge_uv = np.empty((n_edges, 2), np.int64)
     tri_edge = np.empty((m, 3), np.int64)
     for ch in prange(n_chunks):
-        buf = np.empty(256, np.int64)
+        buf = np.empty(width, np.int64)
         for u in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
             k = _local_neighbours(tri, vt_off, vt, u, buf)
             base = per[u]
