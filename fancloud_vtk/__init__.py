@@ -8,7 +8,7 @@ FanCloudReduceFilter``); VTK is loaded on that first use, so ``import
 fancloud_vtk`` alone needs no VTK.
 """
 
-from .core.entropy import Entropy, entropy, fan_cloud_of_mesh
+from .core.entropy import Entropy, UnreferencedVerticesWarning, entropy, fan_cloud_of_mesh
 from .core.fans import Cancelled, DuplicatePointsWarning, build_fans
 from .core.mesh import TriangleMesh, fan_cloud_to_mesh
 from .core.model import FanCloud, find_color_array
@@ -63,6 +63,7 @@ __all__ = [
     "FanCloudViewDependentFilter",
     "Hierarchy",
     "TriangleMesh",
+    "UnreferencedVerticesWarning",
     "ViewDependentFanCloud",
     "build_fans",
     "entropy",

@@ -1,16 +1,22 @@
-"""Triangle mesh inputs: vertices of any valence.
+"""Triangle mesh inputs: vertices of any valence, and vertices that no triangle uses.
 
-A vertex of valence 2,000 (the centre of a fan-triangulated 2,000-gon, the
-apexes of a cone, the poles of a fine UV sphere) goes through every stage: no
-fixed per-vertex cap (``build_edges`` raised beyond 256 neighbours, the local
-Delaunay rings took at most 255 candidates).
+* A vertex of valence 2,000 (the centre of a fan-triangulated 2,000-gon, the
+  apexes of a cone, the poles of a fine UV sphere) goes through every stage:
+  no fixed per-vertex cap (``build_edges`` raised beyond 256 neighbours, the
+  local Delaunay rings took at most 255 candidates).
+* Vertices that no triangle uses are dropped by default
+  (``fan_cloud_of_mesh``), with an ``UnreferencedVerticesWarning``, the count
+  ``info["unreferenced_dropped"]`` and ``original_id``;
+  ``keep_unreferenced=True`` keeps them.
 """
 
 import numpy as np
 import pytest
 import pyvista as pv
+from conftest import fingerprint
 
 from fancloud_vtk import (
+    UnreferencedVerticesWarning,
     ViewDependentFanCloud,
     entropy,
     fan_cloud_of_mesh,
@@ -132,3 +138,90 @@ def test_fine_uv_sphere_reduces_to_a_mesh():
     assert small.n_points == round(0.176 * sphere.n_points)
     assert int(small["mesh_holes"][0]) == 0
     assert int(small["mesh_non_manifold_edges"][0]) == 0
+
+
+# -- unreferenced vertices ---------------------------------------------------------------
+
+#: where the stray vertices go among the mesh's vertices (a few in front, some inside, one
+#: at the end)
+STRAYS = 7
+
+
+def mesh_with_strays(seed: int = 0):
+    """(points, triangles, colours, labels, mesh vertex ids, stray ids): a UV sphere whose
+    vertices are interleaved with STRAYS vertices that no triangle uses, off the surface."""
+    s = pv.Sphere(theta_resolution=16, phi_resolution=16)
+    p, t = np.asarray(s.points, np.float64), s.regular_faces.astype(np.int64)
+    n = len(p) + STRAYS
+    rng = np.random.default_rng(seed)
+    stray = np.sort(np.concatenate([[0, 1, n - 1], rng.choice(np.arange(2, n - 1), STRAYS - 3,
+                                                                replace=False)]))
+    used = np.setdiff1d(np.arange(n), stray)
+    points = np.empty((n, 3))
+    points[used] = p
+    points[stray] = rng.normal(size=(STRAYS, 3)) * 3.0
+    tri = used[t]
+    rgb = (np.arange(3 * n) % 251).astype(np.uint8).reshape(n, 3)
+    label = np.arange(n, dtype=np.int64) * 10
+    return points, tri, rgb, label, used, stray
+
+
+def check_kept(points, label, used, out_points, out_label, original_id):
+    """The kept vertices are the used ones, in order, with their point data."""
+    np.testing.assert_array_equal(original_id, used)
+    np.testing.assert_array_equal(out_points, points[used])
+    np.testing.assert_array_equal(out_label, label[used])
+
+
+def test_core_drops_unreferenced_vertices():
+    points, tri, rgb, label, used, stray = mesh_with_strays()
+    before = fingerprint(points, tri, rgb, label)
+    with pytest.warns(UnreferencedVerticesWarning,
+                      match=rf"^{STRAYS} of the mesh's {len(points)} vertices are in no triangle"):
+        fc = fan_cloud_of_mesh(points, tri, point_data={"RGB": rgb, "label": label})
+    assert fingerprint(points, tri, rgb, label) == before, "the input is not modified"
+    assert fc.n_points == len(used) and fc.info["unreferenced_dropped"] == STRAYS
+    check_kept(points, label, used, fc.points, fc.point_data["label"],
+               fc.point_data["original_id"])
+    np.testing.assert_array_equal(fc.point_data["RGB"], rgb[used])
+    # the fans are those of the mesh without the strays
+    clean = fan_cloud_of_mesh(points[used], np.searchsorted(used, tri))
+    np.testing.assert_array_equal(fc.offsets, clean.offsets)
+    np.testing.assert_array_equal(fc.ring, clean.ring)
+    np.testing.assert_allclose(fc.normals, clean.normals)
+    assert clean.info["unreferenced_dropped"] == 0 and "original_id" not in clean.point_data
+
+
+def test_core_keeps_unreferenced_vertices_on_request():
+    points, tri, rgb, label, used, stray = mesh_with_strays()
+    fc = fan_cloud_of_mesh(points, tri, point_data={"label": label}, keep_unreferenced=True)
+    assert fc.n_points == len(points) and fc.info["unreferenced_dropped"] == 0
+    assert (fc.fan_sizes[stray] == 0).all() and (fc.fan_sizes[used] > 0).all()
+    assert "original_id" not in fc.point_data
+
+
+def test_core_composes_the_input_original_id_and_reduces_to_input_ids():
+    """An input's own original_id is kept (a chain maps to its first input), and a
+    reduction of the dropped mesh maps to the input's vertex ids."""
+    points, tri, rgb, label, used, stray = mesh_with_strays()
+    own = np.arange(len(points), dtype=np.int64) + 1000
+    with pytest.warns(UnreferencedVerticesWarning):
+        fc = fan_cloud_of_mesh(points, tri, point_data={"original_id": own})
+    np.testing.assert_array_equal(fc.point_data["original_id"], own[used])
+    with pytest.warns(UnreferencedVerticesWarning):
+        small = reduce(fan_cloud_of_mesh(points, tri), n_points=100)
+    ids = small.point_data["original_id"]
+    assert np.isin(ids, used).all()
+    np.testing.assert_array_equal(small.points, points[ids])
+
+
+def test_core_triangle_mesh_input_goes_the_same_way():
+    """A TriangleMesh given to entropy (and reduce, refine, the forest) is read by
+    fan_cloud_of_mesh: its points in no triangle are dropped with the warning."""
+    from fancloud_vtk import TriangleMesh
+
+    points, tri, rgb, label, used, stray = mesh_with_strays()
+    mesh = TriangleMesh(points, tri, np.tile([0.0, 0.0, 1.0], (len(points), 1)))
+    with pytest.warns(UnreferencedVerticesWarning, match=f"^{STRAYS} of"):
+        ent = entropy(mesh)
+    assert ent.total.shape == (len(used),)

@@ -17,7 +17,9 @@ vertex's one-ring is its fan (:func:`fan_cloud_of_mesh`).
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -176,6 +178,81 @@ def entropy(fancloud, weights=DEFAULT_WEIGHTS, colors=None) -> Entropy:
 # -- triangle meshes as fan clouds -------------------------------------------------
 
 
+class UnreferencedVerticesWarning(UserWarning):
+    """Vertices of a triangle mesh input that no triangle uses were dropped."""
+
+
+#: the count of dropped unreferenced vertices: a key of ``FanCloud.info`` and the name of
+#: the one-value field array of the filters' outputs
+UNREFERENCED_DROPPED = "unreferenced_dropped"
+
+#: the point array that maps the points of a result to those of its input (as for merged
+#: duplicates and reductions)
+ORIGINAL_ID = "original_id"
+
+
+class ReferencedMesh(NamedTuple):
+    """A triangle mesh without the vertices that no triangle uses (:func:`drop_unreferenced`)."""
+
+    points: np.ndarray  #: ``(n', 3)`` the vertices in triangles, in input order
+    triangles: np.ndarray  #: ``(m, 3)`` renumbered to the kept vertices
+    normals: np.ndarray | None  #: ``(n', 3)`` the kept vertices' normals, if given
+    point_data: dict  #: the kept vertices' rows; ``original_id`` when some were dropped
+    dropped: int  #: how many vertices were dropped
+
+
+def drop_unreferenced(points: np.ndarray, triangles: np.ndarray, normals=None, point_data=None,
+                      *, keep_unreferenced: bool = False, stacklevel: int = 2) -> ReferencedMesh:
+    """A triangle mesh input without the vertices that no triangle uses.
+
+    Such vertices (stray points of a file, construction points of a CAD
+    export, often off the surface) would become fan cloud points without a
+    fan, or, when fans are built from the points, fans across the surface.
+    Every front reads a triangle mesh input through this function: the
+    core (:func:`fan_cloud_of_mesh`), the VTK filters and the accessor
+    (``fancloud_vtk.algorithms.convert``) and the ``fancloud`` command.
+
+    The kept vertices stay in input order with their rows of ``normals``
+    and ``point_data``. When vertices are dropped, an
+    :class:`UnreferencedVerticesWarning` says how many (``stacklevel`` as
+    for ``warnings.warn``, counted from the caller of this function) and the
+    point array ``original_id`` maps the kept vertices to the input's
+    (an input's own ``original_id`` is kept, so a chain of steps maps to
+    its first input). With ``keep_unreferenced`` (or nothing to drop) the
+    arrays come back as they are.
+
+    ``points`` ``(n, 3)``, ``normals`` ``(n, 3)`` or None and
+    ``point_data`` (arrays of ``n`` rows) must be checked already; they are
+    never modified. ``triangles`` are checked here (``(m, 3)`` integers in
+    ``[0, n)``, else a :class:`~fancloud_vtk.core.mesh_stats.MeshInputError`)
+    and returned as a new int64 array; without triangles nothing is dropped.
+    """
+    from .mesh_stats import _as_triangles
+
+    point_data = {} if point_data is None else point_data
+    n = len(points)
+    tri = _as_triangles(triangles, n)
+    used = np.zeros(n, bool)
+    used[tri.ravel()] = True
+    n_kept = int(np.count_nonzero(used))
+    if keep_unreferenced or n_kept == n or n_kept == 0:
+        return ReferencedMesh(points, tri, normals, point_data, 0)
+    keep = np.flatnonzero(used)
+    new_id = np.full(n, -1, np.int64)
+    new_id[keep] = np.arange(n_kept)
+    pdata = {name: arr[keep] for name, arr in point_data.items()}
+    pdata.setdefault(ORIGINAL_ID, keep.astype(np.int64))
+    warnings.warn(
+        f"{n - n_kept} of the mesh's {n} vertices are in no triangle and were dropped "
+        f"(the keep_unreferenced option keeps them as plain points); the '{ORIGINAL_ID}' point "
+        "array maps the result to the input's vertices",
+        UnreferencedVerticesWarning,
+        stacklevel=stacklevel + 1,
+    )
+    return ReferencedMesh(points[keep], new_id[tri],
+                          None if normals is None else normals[keep], pdata, n - n_kept)
+
+
 def as_fan_cloud(data) -> FanCloud:
     """A :class:`FanCloud` as it is, or the fan cloud of a :class:`TriangleMesh`."""
     from .mesh import TriangleMesh
@@ -200,7 +277,8 @@ def as_fan_cloud(data) -> FanCloud:
     )
 
 
-def fan_cloud_of_mesh(points, triangles, *, normals=None, point_data=None) -> FanCloud:
+def fan_cloud_of_mesh(points, triangles, *, normals=None, point_data=None,
+                      keep_unreferenced: bool = False) -> FanCloud:
     """The fan cloud of a triangle mesh: every vertex's one-ring is its fan.
 
     Rings follow the triangles counter-clockwise; a boundary vertex gets an
@@ -208,7 +286,9 @@ def fan_cloud_of_mesh(points, triangles, *, normals=None, point_data=None) -> Fa
     point), else the area-weighted triangle normals, so they follow the
     mesh's orientation. A vertex whose triangles do not form one
     fan (non-manifold) gets its neighbours sorted by angle around its
-    normal (closed). Vertices in no triangle get an empty ring.
+    normal (closed). Vertices in no triangle are dropped with an
+    :class:`UnreferencedVerticesWarning` (see :func:`drop_unreferenced`),
+    or with ``keep_unreferenced`` kept with an empty ring.
 
     Parameters
     ----------
@@ -220,12 +300,17 @@ def fan_cloud_of_mesh(points, triangles, *, normals=None, point_data=None) -> Fa
         ``(n, 3)`` vertex normals (default: from the triangles).
     point_data : dict of str to numpy.ndarray, optional
         Point arrays (``n`` rows each), carried by the fan cloud.
+    keep_unreferenced : bool, default: False
+        Keep the vertices that no triangle uses, as points with an empty
+        ring (default: drop them).
 
     Returns
     -------
     FanCloud
         The vertices with their one-rings as fans; ``info["source"]`` is
-        ``'triangle mesh'``.
+        ``'triangle mesh'``, ``info["unreferenced_dropped"]`` the number of
+        vertices dropped (then the point array ``original_id`` maps the
+        points to the input's vertices).
 
     Raises
     ------
@@ -244,25 +329,27 @@ def fan_cloud_of_mesh(points, triangles, *, normals=None, point_data=None) -> Fa
     >>> bool(np.all(np.sum(tetra.normals * points, axis=1) > 0))  # outward
     True
     """
-    from .mesh_stats import _as_triangles
     from .validation import check_point_data
 
     pts = as_points(points)
     n = len(pts)
-    tri = _as_triangles(triangles, n)
-    if len(tri) == 0:
-        raise ValueError("the mesh has no triangles: no one-rings to take as fans")
-    tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])]
     pdata = check_point_data(point_data, n)
     if normals is not None:
         normals = as_normals(normals, n)
-    else:
+    pts, tri, normals, pdata, dropped = drop_unreferenced(
+        pts, triangles, normals, pdata, keep_unreferenced=keep_unreferenced, stacklevel=3)
+    if len(tri) == 0:
+        raise ValueError("the mesh has no triangles: no one-rings to take as fans")
+    n = len(pts)
+    tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])]
+    if normals is None:
         normals = _area_normals(pts, tri)
     offsets, ring, is_open, ok = EK.one_rings(np.ascontiguousarray(tri, np.int64), n)
     if not ok.all():
         offsets, ring, is_open = _sorted_rings(pts, normals, tri, offsets, ring, is_open, ok)
     return FanCloud(pts, offsets, ring, normals, is_open, None, pdata,
-                    {"source": "triangle mesh", "triangles": int(len(tri))})
+                    {"source": "triangle mesh", "triangles": int(len(tri)),
+                     UNREFERENCED_DROPPED: dropped})
 
 
 def _area_normals(pts, tri):
