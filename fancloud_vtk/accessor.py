@@ -14,7 +14,12 @@ import inspect
 import pyvista as pv
 
 from fancloud_vtk.algorithms.base import run
-from fancloud_vtk.algorithms.convert import fancloud_from_vtk, input_fan_cloud, is_fancloud
+from fancloud_vtk.algorithms.convert import (
+    add_unreferenced_field,
+    fancloud_from_vtk,
+    input_fan_cloud,
+    is_fancloud,
+)
 from fancloud_vtk.algorithms.entropy import FanCloudEntropyFilter
 from fancloud_vtk.algorithms.fans import FanCloudFilter
 from fancloud_vtk.algorithms.mesh import FanCloudMeshFilter
@@ -30,6 +35,7 @@ from fancloud_vtk.core.vdfc import ViewDependentFanCloud
 from fancloud_vtk.params import (
     ENTROPY_PARAMS,
     FAN_PARAMS,
+    INPUT_PARAMS,
     MESH_PARAMS,
     REDUCE_PARAMS,
     REFINE_PARAMS,
@@ -101,8 +107,10 @@ class PyVistaViewDependentFanCloud(ViewDependentFanCloud):
         d = d_max if d_max is not None else (self.values["d_max"] or None)
         a = aspect if aspect is not None else (self.values["aspect"] or None)
         s = superfluous if superfluous is not None else self.values["superfluous"]
-        return pv.wrap(super().front(camera, e, d, aspect=a, incremental=incremental,
-                                     superfluous=s))
+        out = pv.wrap(super().front(camera, e, d, aspect=a, incremental=incremental,
+                                    superfluous=s))
+        add_unreferenced_field(out, getattr(self, "unreferenced_dropped", None))
+        return out
 
     def filter(self) -> FanCloudViewDependentFilter:
         """A :class:`~fancloud_vtk.algorithms.FanCloudViewDependentFilter` over this forest."""
@@ -164,12 +172,13 @@ class FanCloudAccessor:
         """The dataset's fan cloud as a :class:`fancloud_vtk.FanCloud` (arrays copied)."""
         return fancloud_from_vtk(self._dataset)
 
-    @_document(FAN_PARAMS)
+    @_document(FAN_PARAMS + INPUT_PARAMS)
     def fans(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
         """Build the fan cloud of the dataset's points (paper section 3).
 
-        Only the points are used; every point array is kept, and a
-        ``Normals`` point array orients the fan normals.
+        Only the points are used (of a triangle mesh only the vertices of its
+        triangles, unless ``keep_unreferenced``); every point array is kept,
+        and a ``Normals`` point array orients the fan normals.
 
         Parameters
         ----------
@@ -182,7 +191,11 @@ class FanCloudAccessor:
         pyvista.PolyData
             A new dataset: the points, the distinct fan triangles, point arrays
             ``Normals``, ``fan_open``, ``fan_rotated`` and the input's arrays,
-            field arrays ``fan_offsets`` and ``fan_ring``.
+            field arrays ``fan_offsets`` and ``fan_ring`` (and, for a triangle
+            mesh, ``unreferenced_dropped``: how many of its vertices no triangle
+            used and were dropped, with an
+            :class:`~fancloud_vtk.UnreferencedVerticesWarning`; the point array
+            ``original_id`` then maps the points to the input's).
 
         Raises
         ------
@@ -203,10 +216,10 @@ class FanCloudAccessor:
         0
         >>> fans.plot(smooth_shading=True)  # doctest: +SKIP
         """
-        values = check_params(FAN_PARAMS, params)
+        values = check_params(FAN_PARAMS + INPUT_PARAMS, params)
         return _run(FanCloudFilter(**values), self._dataset, progress_bar, "Building fans")
 
-    @_document(FAN_PARAMS + MESH_PARAMS)
+    @_document(FAN_PARAMS + INPUT_PARAMS + MESH_PARAMS)
     def mesh(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
         """Triangle mesh from the fan cloud (paper section 4): a closed 2-manifold where it can be.
 
@@ -249,10 +262,10 @@ class FanCloudAccessor:
         (True, 0)
         >>> mesh.plot(smooth_shading=True)  # doctest: +SKIP
         """
-        values = check_params(FAN_PARAMS + MESH_PARAMS, params)
+        values = check_params(FAN_PARAMS + INPUT_PARAMS + MESH_PARAMS, params)
         return _run(FanCloudMeshFilter(**values), self._dataset, progress_bar, "Meshing")
 
-    @_document(FAN_PARAMS + ENTROPY_PARAMS)
+    @_document(FAN_PARAMS + INPUT_PARAMS + ENTROPY_PARAMS)
     def entropy(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
         """The entropy of every point (paper section 5) as point arrays.
 
@@ -288,10 +301,10 @@ class FanCloudAccessor:
         ('triangle mesh', True)
         >>> ent.plot(scalars="entropy_curv", log_scale=True)  # doctest: +SKIP
         """
-        values = check_params(FAN_PARAMS + ENTROPY_PARAMS, params)
+        values = check_params(FAN_PARAMS + INPUT_PARAMS + ENTROPY_PARAMS, params)
         return _run(FanCloudEntropyFilter(**values), self._dataset, progress_bar, "Entropy")
 
-    @_document(FAN_PARAMS + REDUCE_PARAMS)
+    @_document(FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS)
     def reduce(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
         """Reduce to an exact number of points by entropy (paper section 5).
 
@@ -336,10 +349,10 @@ class FanCloudAccessor:
         >>> small.plot(smooth_shading=True)  # doctest: +SKIP
         """
         _one_amount(params, "keep")
-        values = check_params(FAN_PARAMS + REDUCE_PARAMS, params)
+        values = check_params(FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS, params)
         return _run(FanCloudReduceFilter(**values), self._dataset, progress_bar, "Reducing")
 
-    @_document(FAN_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS)
+    @_document(FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS)
     def selective(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
         """Reduce, smooth the coarse level, refine only a region of interest (Figure 11).
 
@@ -388,11 +401,12 @@ class FanCloudAccessor:
         >>> head.plot(smooth_shading=True)  # doctest: +SKIP
         """
         _one_amount(params, "keep")
-        values = check_params(FAN_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS, params)
+        values = check_params(FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS,
+                              params)
         return _run(FanCloudSelectiveRefineFilter(**values), self._dataset, progress_bar,
                     "Refining a region")
 
-    @_document(FAN_PARAMS + REFINE_PARAMS)
+    @_document(FAN_PARAMS + INPUT_PARAMS + REFINE_PARAMS)
     def refine(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
         """Refine beyond the input resolution by entropy (paper section 7).
 
@@ -441,10 +455,10 @@ class FanCloudAccessor:
         >>> fine.plot(smooth_shading=True)  # doctest: +SKIP
         """
         _one_amount(params, "factor")
-        values = check_params(FAN_PARAMS + REFINE_PARAMS, params)
+        values = check_params(FAN_PARAMS + INPUT_PARAMS + REFINE_PARAMS, params)
         return _run(FanCloudRefineFilter(**values), self._dataset, progress_bar, "Refining")
 
-    @_document(FAN_PARAMS + VDFC_PARAMS, returns="PyVistaViewDependentFanCloud")
+    @_document(FAN_PARAMS + INPUT_PARAMS + VDFC_PARAMS, returns="PyVistaViewDependentFanCloud")
     def vdfc(self, *, progress_bar: bool = False, **params) -> PyVistaViewDependentFanCloud:
         """The view-dependent fan cloud: a merge forest and its fronts (paper section 8).
 
@@ -466,7 +480,9 @@ class FanCloudAccessor:
         -------
         PyVistaViewDependentFanCloud
             A :class:`fancloud_vtk.ViewDependentFanCloud` whose fronts are
-            ``pyvista.PolyData``.
+            ``pyvista.PolyData``. For a triangle mesh, its attribute
+            ``unreferenced_dropped`` (and its fronts' field array of that
+            name) counts the vertices that no triangle used and were dropped.
 
         See Also
         --------
@@ -489,7 +505,7 @@ class FanCloudAccessor:
         >>> actor = vd.add_to(pl, color="tan")
         >>> pl.show()  # doctest: +SKIP
         """
-        values = check_params(FAN_PARAMS + VDFC_PARAMS, params)
+        values = check_params(FAN_PARAMS + INPUT_PARAMS + VDFC_PARAMS, params)
         data = self._dataset if self._dataset.IsA("vtkImageData") else \
             _point_set(self._dataset)
         if progress_bar:
@@ -510,14 +526,14 @@ class FanCloudAccessor:
         return PyVistaViewDependentFanCloud.of(vd, values)
 
     def hierarchy(self, n_points=None, *, weights=(1.0, 1.0, 50.0, 0.0), method="entropy",
-                  color_array="", exact=False, **fan_params):
+                  color_array="", exact=False, keep_unreferenced=False, **fan_params):
         """The levels of detail of the reduction (paper section 6).
 
         Parameters
         ----------
         n_points : int, optional
             The coarsest level to compute (default: as far as it goes).
-        weights, method, color_array, exact
+        weights, method, color_array, exact, keep_unreferenced
             As for :meth:`reduce`.
         **fan_params
             Fan parameters (``k``, ...) for a plain point set.
@@ -546,10 +562,11 @@ class FanCloudAccessor:
         """
         from fancloud_vtk.core.reduction import hierarchy
 
-        fan_values = check_params(FAN_PARAMS, fan_params)
+        fans = check_params(FAN_PARAMS, fan_params)
         check_params(REDUCE_PARAMS, {"weights": weights, "method": method,
                                      "color_array": color_array, "exact": exact})
-        fc, kind = input_fan_cloud(_point_set(self._dataset), fan_values)
+        mesh = check_params(INPUT_PARAMS, {"keep_unreferenced": keep_unreferenced})
+        fc, kind = input_fan_cloud(_point_set(self._dataset), fans, **mesh)
         h = hierarchy(fc, n_points, weights=weights, method=method,
                       colors=color_array or None, exact=exact)
         h.fancloud_input = kind

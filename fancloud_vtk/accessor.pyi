@@ -61,6 +61,7 @@ class FanCloudAccessor:
         rotate_sharp_edges: bool = True,
         reach: float = 5.0,
         orient: bool = True,
+        keep_unreferenced: bool = False,
         progress_bar: bool = False,
     ) -> pv.PolyData:
         """Build the fan cloud of the dataset's points (paper section 3); a new PolyData."""
@@ -76,6 +77,7 @@ class FanCloudAccessor:
         rotate_sharp_edges: bool = True,
         reach: float = 5.0,
         orient: bool = True,
+        keep_unreferenced: bool = False,
         rings: Literal["delaunay", "fans"] = "delaunay",
         close_holes: bool = True,
         max_hole: int = 32,
@@ -96,6 +98,7 @@ class FanCloudAccessor:
         rotate_sharp_edges: bool = True,
         reach: float = 5.0,
         orient: bool = True,
+        keep_unreferenced: bool = False,
         weights: tuple[float, float, float, float] = (1.0, 1.0, 50.0, 0.0),
         color_array: str = "",
         progress_bar: bool = False,
@@ -113,6 +116,7 @@ class FanCloudAccessor:
         rotate_sharp_edges: bool = True,
         reach: float = 5.0,
         orient: bool = True,
+        keep_unreferenced: bool = False,
         keep: float = 0.42,
         n_points: int = 0,
         weights: tuple[float, float, float, float] = (1.0, 1.0, 50.0, 0.0),
@@ -135,6 +139,7 @@ class FanCloudAccessor:
         rotate_sharp_edges: bool = True,
         reach: float = 5.0,
         orient: bool = True,
+        keep_unreferenced: bool = False,
         factor: float = 2.0,
         n_points: int = 0,
         weights: tuple[float, float, float, float] = (1.0, 1.0, 0.0, 0.0),
@@ -157,6 +162,7 @@ class FanCloudAccessor:
         rotate_sharp_edges: bool = True,
         reach: float = 5.0,
         orient: bool = True,
+        keep_unreferenced: bool = False,
         keep: float = 0.42,
         n_points: int = 0,
         weights: tuple[float, float, float, float] = (1.0, 1.0, 50.0, 0.0),
@@ -183,6 +189,7 @@ class FanCloudAccessor:
         rotate_sharp_edges: bool = True,
         reach: float = 5.0,
         orient: bool = True,
+        keep_unreferenced: bool = False,
         e_max: float = 0.0,
         d_max: float = 0.0,
         merge: Literal["entropy", "half_edge"] = "entropy",
@@ -204,6 +211,7 @@ class FanCloudAccessor:
         method: Literal["entropy", "error"] = "entropy",
         color_array: str = "",
         exact: bool = False,
+        keep_unreferenced: bool = False,
         **fan_params: object,
     ) -> Hierarchy:
         """The levels of detail of the reduction (paper section 6): a Hierarchy."""

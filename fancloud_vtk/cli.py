@@ -36,6 +36,7 @@ import numpy as np
 from fancloud_vtk.params import (
     ENTROPY_PARAMS,
     FAN_PARAMS,
+    INPUT_PARAMS,
     MESH_PARAMS,
     REDUCE_PARAMS,
     REFINE_PARAMS,
@@ -117,17 +118,39 @@ class _Progress:
         self.bar.close()
 
 
-def _build(points_file, params, quiet):
-    from fancloud_vtk.core.fans import build_fans
-
-    data = dict(points_file.point_data)
+def _source_arrays(src):
+    """(points, normals, the other point arrays, triangles or None) of a file read."""
+    data = dict(src.point_data)
     normals = data.pop("Normals", None)
-    progress = _Progress("fans", quiet)
+    faces = src.faces if src.faces is not None and len(src.faces) else None
+    return src.points, normals, data, faces
+
+
+def _build(src, args):
+    """The fans of a file's points (of a mesh file: of its triangles' vertices, unless
+    --keep-unreferenced), built with the fan options."""
+    from fancloud_vtk.algorithms.convert import fans_of_points
+
+    progress = _Progress("fans", args.quiet)
     try:
-        return build_fans(points_file.points, normals=normals, point_data=data,
-                          progress=progress, **params)
+        return fans_of_points(*_source_arrays(src), _params(args, FAN_PARAMS), progress,
+                              keep_unreferenced=args.keep_unreferenced)
     finally:
         progress.close()
+
+
+def _dropped(fc) -> int | None:
+    """How many unreferenced vertices of a mesh input were dropped (None: not a mesh)."""
+    from fancloud_vtk.core.entropy import UNREFERENCED_DROPPED
+
+    return fc.info.get(UNREFERENCED_DROPPED)
+
+
+def _input_row(kind: str, fc) -> tuple[str, str]:
+    """The summary row of the input: its kind, points and dropped unreferenced vertices."""
+    dropped = _dropped(fc)
+    more = f" ({dropped:,} unreferenced vertices dropped)" if dropped else ""
+    return "input", f"{kind}, {fc.n_points:,} points{more}"
 
 
 def _check_output(path: str, ext: str | tuple[str, ...]) -> None:
@@ -146,7 +169,7 @@ def cmd_fans(args) -> int:
     _check_output(args.output, ".vtp")
     src = read_point_cloud(args.input)
     t0 = time.perf_counter()
-    fc = _build(src, _params(args, FAN_PARAMS), args.quiet)
+    fc = _build(src, args)
     elapsed = time.perf_counter() - t0
     fc.save(args.output)
     if not args.quiet:
@@ -154,7 +177,7 @@ def cmd_fans(args) -> int:
     return 0
 
 
-def _load_fancloud(path, params, quiet):
+def _load_fancloud(path, args):
     """A fan cloud .vtp as it is; any other point cloud or mesh file: its fans, built."""
     from fancloud_vtk.io import read_point_cloud
 
@@ -164,21 +187,30 @@ def _load_fancloud(path, params, quiet):
         data = read_vtp(path)
         if is_fancloud(data):
             return fancloud_from_vtk(data)
-    return _build(read_point_cloud(path), params, quiet)
+    return _build(read_point_cloud(path), args)
 
 
 def cmd_mesh(args) -> int:
-    from fancloud_vtk.algorithms.convert import MESH_FORMATS, mesh_to_vtk, write_mesh
+    from fancloud_vtk.algorithms.convert import (
+        MESH_FORMATS,
+        add_unreferenced_field,
+        mesh_to_vtk,
+        write_mesh,
+    )
     from fancloud_vtk.core.mesh import fan_cloud_to_mesh
 
     _check_output(args.output, MESH_FORMATS)
     t0 = time.perf_counter()
-    fc = _load_fancloud(args.input, _params(args, FAN_PARAMS), args.quiet)
+    fc = _load_fancloud(args.input, args)
     mesh = fan_cloud_to_mesh(fc, **_params(args, MESH_PARAMS))
     elapsed = time.perf_counter() - t0
-    write_mesh(mesh_to_vtk(mesh), args.output)
+    out = mesh_to_vtk(mesh)
+    add_unreferenced_field(out, _dropped(fc))
+    write_mesh(out, args.output)
     if not args.quiet:
-        _print_mesh_summary(mesh, elapsed, args.output)
+        dropped = _dropped(fc)
+        extra = [("unreferenced dropped", f"{dropped:,}")] if dropped else []
+        _print_mesh_summary(mesh, elapsed, args.output, extra)
     return 0
 
 
@@ -217,16 +249,19 @@ def _print_summary(fc, elapsed, path=None) -> None:
         ("fans in rotated plane", f"{s['fans_rotated']:,}"),
         ("distinct triangles / point", f"{s['distinct_triangles_per_point']:.2f}"),
         ("duplicates merged", f"{fc.info.get('duplicates_merged', 0):,}"),
-        ("time", f"{elapsed:.2f} s"),
     ]
+    if _dropped(fc):
+        rows.append(("unreferenced dropped", f"{_dropped(fc):,}"))
+    rows.append(("time", f"{elapsed:.2f} s"))
     if path:
         rows.append(("written", str(path)))
     _print_rows(rows)
 
 
-def _load_any(path, fan_params, quiet):
-    """(fan cloud, kind): a fan cloud .vtp as it is, a mesh file's one-rings, or built fans."""
-    from fancloud_vtk.algorithms.convert import KIND_FANS, KIND_MESH, KIND_POINTS
+def _load_any(path, args):
+    """(fan cloud, kind): a fan cloud .vtp as it is, a mesh file's one-rings (its
+    unreferenced vertices dropped unless --keep-unreferenced), or built fans."""
+    from fancloud_vtk.algorithms.convert import KIND_FANS, fan_cloud_of_arrays
     from fancloud_vtk.io import read_point_cloud
 
     if path.lower().endswith(".vtp"):
@@ -236,16 +271,12 @@ def _load_any(path, fan_params, quiet):
         if is_fancloud(data):
             return fancloud_from_vtk(data), KIND_FANS
     src = read_point_cloud(path)
-    if src.faces is not None and len(src.faces):
-        from fancloud_vtk.core.entropy import fan_cloud_of_mesh
-
-        data = dict(src.point_data)
-        normals = data.pop("Normals", None)
-        if normals is not None and not (abs(normals).sum(axis=1) > 0).all():
-            normals = None
-        return fan_cloud_of_mesh(src.points, src.faces, normals=normals, point_data=data), \
-            KIND_MESH
-    return _build(src, fan_params, quiet), KIND_POINTS
+    progress = _Progress("fans", args.quiet)
+    try:
+        return fan_cloud_of_arrays(*_source_arrays(src), _params(args, FAN_PARAMS), progress,
+                                   keep_unreferenced=args.keep_unreferenced)
+    finally:
+        progress.close()
 
 
 def cmd_entropy(args) -> int:
@@ -253,13 +284,13 @@ def cmd_entropy(args) -> int:
 
     _check_output(args.output, ".vtp")
     t0 = time.perf_counter()
-    fc, kind = _load_any(args.input, _params(args, FAN_PARAMS), args.quiet)
+    fc, kind = _load_any(args.input, args)
     ent = entropy(fc, args.weights, colors=args.color_array or None)
     elapsed = time.perf_counter() - t0
     fc.point_data.update(ent.as_dict())
     fc.save(args.output)
     if not args.quiet:
-        rows = [("input", f"{kind}, {fc.n_points:,} points"), ("weights", str(ent.weights)),
+        rows = [_input_row(kind, fc), ("weights", str(ent.weights)),
                 ("mean neighbour distance", f"{ent.mean_distance:.6g}")]
         for name, arr in ent.as_dict().items():
             rows.append((name, f"min {arr.min():.4g}  mean {arr.mean():.4g}  max {arr.max():.4g}"))
@@ -312,7 +343,7 @@ def cmd_selective(args) -> int:
         raise ValueError("give --keep F (a fraction) or --n N (a count)")
     # the options, the amount (all but "larger than the cloud") and the region are checked
     # before the input is read and reduced
-    table = FAN_PARAMS + SELECTIVE_OPTIONS
+    table = FAN_PARAMS + INPUT_PARAMS + SELECTIVE_OPTIONS
     values = check_params(table, _params(args, table))
     target_count(sys.maxsize, n_points=args.n_points, keep=args.keep)
     values.update(n_points=args.n_points or 0, keep=args.keep)
@@ -334,12 +365,18 @@ def cmd_selective(args) -> int:
 def _fan_cloud_verb(args, name: str, stage: str, call, describe) -> int:
     """Read the input as a fan cloud, run ``call(fc, progress)``, save the result (its mesh
     with ``--mesh``) and print the summary: the input, ``describe(fc, result)``, the times."""
-    from fancloud_vtk.algorithms.convert import MESH_FORMATS, mesh_to_vtk, write_mesh
+    from fancloud_vtk.algorithms.convert import (
+        MESH_FORMATS,
+        add_unreferenced_field,
+        mesh_to_vtk,
+        write_mesh,
+    )
+    from fancloud_vtk.core.entropy import UNREFERENCED_DROPPED
 
     as_mesh = getattr(args, "mesh", False)
     _check_output(args.output, MESH_FORMATS if as_mesh else ".vtp")
     t0 = time.perf_counter()
-    fc, kind = _load_any(args.input, _params(args, FAN_PARAMS), args.quiet)
+    fc, kind = _load_any(args.input, args)
     t1 = time.perf_counter()
     progress = _Progress(name, args.quiet)
     try:
@@ -347,16 +384,20 @@ def _fan_cloud_verb(args, name: str, stage: str, call, describe) -> int:
     finally:
         progress.close()
     t2 = time.perf_counter()
-    rows = [("input", f"{kind}, {fc.n_points:,} points"), *describe(fc, out),
+    rows = [_input_row(kind, fc), *describe(fc, out),
             ("time: read and fans", f"{t1 - t0:.2f} s"), (f"time: {stage}", f"{t2 - t1:.2f} s")]
     if as_mesh:
         from fancloud_vtk.algorithms.reduce import mesh_rings
         from fancloud_vtk.core.mesh import fan_cloud_to_mesh
 
         mesh = fan_cloud_to_mesh(out, rings=mesh_rings(kind))
-        write_mesh(mesh_to_vtk(mesh), args.output)
+        result = mesh_to_vtk(mesh)
+        add_unreferenced_field(result, _dropped(fc))
+        write_mesh(result, args.output)
         rows += [("triangles", f"{mesh.n_triangles:,}"), ("holes", f"{mesh.stats['holes']}")]
     else:
+        if _dropped(fc) is not None:  # the count travels with the result's .vtp
+            out.info[UNREFERENCED_DROPPED] = _dropped(fc)
         out.save(args.output)
     rows.append(("written", args.output))
     if not args.quiet:
@@ -435,8 +476,10 @@ def _load_forest(args, values):
         image = image_of_heights(heights, spacing)
         vd, _ = build_forest(image, values)
         return vd, f"height field {heights.shape[0]} x {heights.shape[1]}"
-    fc, kind = _load_any(path, _params(args, FAN_PARAMS), args.quiet)
-    return forest_of(fc, values), f"{kind}, {fc.n_points:,} points"
+    fc, kind = _load_any(path, args)
+    vd = forest_of(fc, values)
+    vd.unreferenced_dropped = _dropped(fc)
+    return vd, _input_row(kind, fc)[1]
 
 
 def cmd_vdfc(args) -> int:
@@ -452,8 +495,9 @@ def cmd_vdfc(args) -> int:
         if args.output is None:
             raise ValueError("--camera needs -o frame.png or -o front.vtp")
         _check_output(args.output, (".png", ".vtp"))
-    values = check_params(FAN_PARAMS + VDFC_PARAMS, {
-        **_params(args, FAN_PARAMS + tuple(x for x in VDFC_PARAMS if x.name != "aspect")),
+    values = check_params(FAN_PARAMS + INPUT_PARAMS + VDFC_PARAMS, {
+        **_params(args, FAN_PARAMS + INPUT_PARAMS
+                  + tuple(x for x in VDFC_PARAMS if x.name != "aspect")),
         "aspect": w / h})
     t0 = time.perf_counter()
     vd, what = _load_forest(args, values)
@@ -466,10 +510,12 @@ def cmd_vdfc(args) -> int:
             ("time: forest", f"{t1 - t0:.2f} s"), ("e_max", f"{e_max:.6g}")]
     if camera is not None:
         if args.output.lower().endswith(".vtp"):
-            from fancloud_vtk.algorithms.convert import write_vtp
+            from fancloud_vtk.algorithms.convert import add_unreferenced_field, write_vtp
 
             front = vd.front_arrays(camera, e_max, d_max, superfluous=values["superfluous"])
-            write_vtp(front.to_vtk(), args.output)
+            poly = front.to_vtk()
+            add_unreferenced_field(poly, getattr(vd, "unreferenced_dropped", None))
+            write_vtp(poly, args.output)
             stats = front.stats
             front_ms = 1e3 * stats["seconds"]
         else:
@@ -534,21 +580,21 @@ def make_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("fans", help="build the fan cloud of a point cloud or mesh file")
     p.add_argument("input", help="input file: .ply .obj .vtp .vtk .vtu .xyz .pts .txt .npy")
     p.add_argument("-o", "--output", required=True, help="output fan cloud (.vtp)")
-    _add_params(p, FAN_PARAMS)
+    _add_params(p, FAN_PARAMS + INPUT_PARAMS)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_fans)
 
     p = sub.add_parser("mesh", help="triangle mesh (a 2-manifold) from a fan cloud or points")
     p.add_argument("input", help="a fan cloud .vtp, or a point cloud / mesh file (fans are built)")
     p.add_argument("-o", "--output", required=True, help="output mesh (.ply .obj .vtp .stl .vtk)")
-    _add_params(p, FAN_PARAMS + MESH_PARAMS)
+    _add_params(p, FAN_PARAMS + INPUT_PARAMS + MESH_PARAMS)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_mesh)
 
     p = sub.add_parser("entropy", help="entropy of every point (a fan cloud .vtp with arrays)")
     p.add_argument("input", help="a fan cloud .vtp, a mesh file (one-rings) or a point cloud")
     p.add_argument("-o", "--output", required=True, help="output fan cloud with entropy (.vtp)")
-    _add_params(p, FAN_PARAMS + ENTROPY_PARAMS)
+    _add_params(p, FAN_PARAMS + INPUT_PARAMS + ENTROPY_PARAMS)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_entropy)
 
@@ -560,8 +606,8 @@ def make_parser() -> argparse.ArgumentParser:
     amount.add_argument("--keep", type=float, default=None, help="fraction of points to keep")
     amount.add_argument("--n", "--n-points", dest="n_points", type=int, default=None,
                         help="number of points to keep")
-    _add_params(p, FAN_PARAMS + tuple(x for x in REDUCE_PARAMS
-                                      if x.name not in ("keep", "n_points")))
+    _add_params(p, FAN_PARAMS + INPUT_PARAMS + tuple(x for x in REDUCE_PARAMS
+                                                     if x.name not in ("keep", "n_points")))
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_reduce)
 
@@ -574,8 +620,8 @@ def make_parser() -> argparse.ArgumentParser:
                         help="the result has round(F * n) points (F > 1)")
     amount.add_argument("--n", "--n-points", dest="n_points", type=int, default=None,
                         help="number of points of the result")
-    _add_params(p, FAN_PARAMS + tuple(x for x in REFINE_PARAMS
-                                      if x.name not in ("factor", "n_points")))
+    _add_params(p, FAN_PARAMS + INPUT_PARAMS + tuple(x for x in REFINE_PARAMS
+                                                     if x.name not in ("factor", "n_points")))
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_refine)
 
@@ -588,7 +634,7 @@ def make_parser() -> argparse.ArgumentParser:
                         help="fraction of points in the coarse level")
     amount.add_argument("--n", "--n-points", dest="n_points", type=int, default=None,
                         help="number of points in the coarse level")
-    _add_params(p, FAN_PARAMS + SELECTIVE_OPTIONS)
+    _add_params(p, FAN_PARAMS + INPUT_PARAMS + SELECTIVE_OPTIONS)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_selective)
 
@@ -607,7 +653,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--spacing", type=_vector(2), default=None,
                    help="grid spacing dx,dy of a height field .npz without dx/dy (default 1,1)")
     p.add_argument("--save-forest", metavar="F.npz", help="also save the forest")
-    _add_params(p, FAN_PARAMS + tuple(x for x in VDFC_PARAMS if x.name != "aspect"))
+    _add_params(p, FAN_PARAMS + INPUT_PARAMS + tuple(x for x in VDFC_PARAMS if x.name != "aspect"))
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_vdfc)
 

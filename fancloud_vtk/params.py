@@ -165,6 +165,18 @@ FAN_PARAMS: tuple[Param, ...] = (
     ),
 )
 
+#: How every verb reads a triangle mesh input (a polydata with polygons or strips, an
+#: unstructured grid with 2-d cells, a mesh file): fan_cloud_of_mesh, every filter, every
+#: accessor verb, every ``fancloud`` command that reads a dataset.
+INPUT_PARAMS: tuple[Param, ...] = (
+    Param(
+        "keep_unreferenced", "bool", False,
+        "keep the vertices of a triangle mesh input that no triangle uses, as plain points "
+        "(default: drop them, with an UnreferencedVerticesWarning, their count in the field "
+        "array unreferenced_dropped and the point array original_id)",
+    ),
+)
+
 #: Parameters of the mesh from a fan cloud (paper section 4): fan_cloud_to_mesh,
 #: FanCloudMeshFilter (with FAN_PARAMS for point input), dataset.fancloud.mesh(),
 #: ``fancloud mesh``.

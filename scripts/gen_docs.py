@@ -4,8 +4,9 @@
   ``MESH_PARAMS`` marker comments, from
   :func:`fancloud_vtk.params.markdown_table`;
 * ``fancloud_vtk/accessor.pyi``: the signatures of the accessor verbs
-  ``fans`` (``FAN_PARAMS``) and ``mesh`` (``FAN_PARAMS + MESH_PARAMS``)
-  between their markers, from the same tables.
+  (``fans``: ``FAN_PARAMS + INPUT_PARAMS``, ``mesh``: ``FAN_PARAMS +
+  INPUT_PARAMS + MESH_PARAMS``, ... as in ``VERBS``) between their
+  markers, from the same tables.
 
 It also checks that ``docs/api.md`` names every entry of
 ``fancloud_vtk.__all__``, ``fancloud_vtk.algorithms.__all__`` and
@@ -34,6 +35,7 @@ import fancloud_vtk.core.mesh_stats  # noqa: E402
 from fancloud_vtk.params import (  # noqa: E402
     ENTROPY_PARAMS,
     FAN_PARAMS,
+    INPUT_PARAMS,
     MESH_PARAMS,
     REDUCE_PARAMS,
     REFINE_PARAMS,
@@ -49,31 +51,31 @@ STUB = ROOT / "fancloud_vtk" / "accessor.pyi"
 #: Accessor verbs whose stub signature is generated: name -> (table, one-line docstring).
 VERBS = {
     "fans": (
-        FAN_PARAMS,
+        FAN_PARAMS + INPUT_PARAMS,
         "Build the fan cloud of the dataset's points (paper section 3); a new PolyData.",
     ),
     "mesh": (
-        FAN_PARAMS + MESH_PARAMS,
+        FAN_PARAMS + INPUT_PARAMS + MESH_PARAMS,
         "Triangle mesh of the dataset's fan cloud or points (paper section 4); a new PolyData.",
     ),
     "entropy": (
-        FAN_PARAMS + ENTROPY_PARAMS,
+        FAN_PARAMS + INPUT_PARAMS + ENTROPY_PARAMS,
         "The entropy of every point as point arrays (paper section 5); a new PolyData.",
     ),
     "reduce": (
-        FAN_PARAMS + REDUCE_PARAMS,
+        FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS,
         "Reduce to an exact number of points by entropy (paper section 5); a new PolyData.",
     ),
     "selective": (
-        FAN_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS,
+        FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS,
         "Reduce, smooth, refine only a region of interest (Figure 11); a new PolyData.",
     ),
     "refine": (
-        FAN_PARAMS + REFINE_PARAMS,
+        FAN_PARAMS + INPUT_PARAMS + REFINE_PARAMS,
         "Refine beyond the input resolution by entropy (paper section 7); a new PolyData.",
     ),
     "vdfc": (
-        FAN_PARAMS + VDFC_PARAMS,
+        FAN_PARAMS + INPUT_PARAMS + VDFC_PARAMS,
         "The merge forest of the view-dependent fan cloud (paper section 8).",
         "PyVistaViewDependentFanCloud",
     ),
@@ -82,6 +84,7 @@ VERBS = {
 #: Tables rendered into docs/api.md between ``BEGIN <NAME>`` / ``END <NAME>`` markers.
 TABLES = {
     "FAN_PARAMS": FAN_PARAMS,
+    "INPUT_PARAMS": INPUT_PARAMS,
     "MESH_PARAMS": MESH_PARAMS,
     "ENTROPY_PARAMS": ENTROPY_PARAMS,
     "REDUCE_PARAMS": REDUCE_PARAMS,

@@ -27,7 +27,13 @@ from fancloud_vtk.algorithms import (
     run,
 )
 from fancloud_vtk.algorithms.convert import points_of
-from fancloud_vtk.params import ENTROPY_PARAMS, FAN_PARAMS, MESH_PARAMS, REDUCE_PARAMS
+from fancloud_vtk.params import (
+    ENTROPY_PARAMS,
+    FAN_PARAMS,
+    INPUT_PARAMS,
+    MESH_PARAMS,
+    REDUCE_PARAMS,
+)
 
 N = 2000
 
@@ -189,10 +195,10 @@ def _other_value(param):
 
 #: every filter with its parameter table: the setter test runs on each
 FILTER_PARAMS = (
-    [(FanCloudFilter, p) for p in FAN_PARAMS]
-    + [(FanCloudMeshFilter, p) for p in FAN_PARAMS + MESH_PARAMS]
-    + [(FanCloudEntropyFilter, p) for p in FAN_PARAMS + ENTROPY_PARAMS]
-    + [(FanCloudReduceFilter, p) for p in FAN_PARAMS + REDUCE_PARAMS]
+    [(FanCloudFilter, p) for p in FAN_PARAMS + INPUT_PARAMS]
+    + [(FanCloudMeshFilter, p) for p in FAN_PARAMS + INPUT_PARAMS + MESH_PARAMS]
+    + [(FanCloudEntropyFilter, p) for p in FAN_PARAMS + INPUT_PARAMS + ENTROPY_PARAMS]
+    + [(FanCloudReduceFilter, p) for p in FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS]
     + [(FanCloudSelectiveRefineFilter, p) for p in FanCloudSelectiveRefineFilter.PARAMETERS]
 )
 
@@ -243,7 +249,8 @@ def test_bad_parameter_values_are_rejected_without_modifying():
         fans.SetRule("nearest")
     with pytest.raises(TypeError, match="orient must be True or False"):
         fans.SetOrient("no")
-    assert fans.GetMTime() == t0 and fans.parameters == {p.name: p.default for p in FAN_PARAMS}
+    assert fans.GetMTime() == t0
+    assert fans.parameters == {p.name: p.default for p in FAN_PARAMS + INPUT_PARAMS}
     with pytest.raises(TypeError, match="FanCloudFilter has no parameter 'kk'"):
         FanCloudFilter(kk=6)
     with pytest.raises(ValueError, match="max_angle must be between"):

@@ -22,7 +22,7 @@ from vtkmodules.vtkIOXML import vtkXMLPolyDataReader, vtkXMLPolyDataWriter
 from fancloud_vtk import Cancelled, FanCloud, FanCloudInputError, build_fans, fan_cloud_to_mesh
 from fancloud_vtk.algorithms import FanCloudFilter, FanCloudMeshFilter, fancloud_to_vtk, run
 from fancloud_vtk.cli import main
-from fancloud_vtk.params import FAN_PARAMS, MESH_PARAMS
+from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS, MESH_PARAMS
 
 N = 3000
 CLOSED = 2 * N - 4  # triangles of a closed genus-0 mesh over N points
@@ -163,7 +163,7 @@ def test_bad_parameter_values_are_rejected_without_modifying():
     with pytest.raises(TypeError, match="close_holes must be True or False"):
         mesh.SetCloseHoles("yes")
     assert mesh.GetMTime() == t0
-    assert mesh.parameters == {p.name: p.default for p in FAN_PARAMS + MESH_PARAMS}
+    assert mesh.parameters == {p.name: p.default for p in FAN_PARAMS + INPUT_PARAMS + MESH_PARAMS}
     with pytest.raises(TypeError, match="FanCloudMeshFilter has no parameter 'holes'"):
         FanCloudMeshFilter(holes=True)
 
@@ -300,7 +300,8 @@ def test_accessor_mesh_of_a_fan_cloud(pv_cloud, expected):
 def test_accessor_mesh_signature():
     sig = inspect.signature(pv.PolyData().fancloud.mesh)
     params = list(sig.parameters.values())
-    assert [p.name for p in params] == [p.name for p in FAN_PARAMS + MESH_PARAMS] + ["progress_bar"]
+    table = FAN_PARAMS + INPUT_PARAMS + MESH_PARAMS
+    assert [p.name for p in params] == [p.name for p in table] + ["progress_bar"]
     assert all(p.kind is inspect.Parameter.KEYWORD_ONLY for p in params)
     doc = pv.PolyData().fancloud.mesh.__doc__
     assert "max_hole : int, default: 32" in doc and "{params}" not in doc

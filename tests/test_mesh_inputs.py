@@ -4,16 +4,20 @@
   apexes of a cone, the poles of a fine UV sphere) goes through every stage:
   no fixed per-vertex cap (``build_edges`` raised beyond 256 neighbours, the
   local Delaunay rings took at most 255 candidates).
-* Vertices that no triangle uses are dropped by default
-  (``fan_cloud_of_mesh``), with an ``UnreferencedVerticesWarning``, the count
-  ``info["unreferenced_dropped"]`` and ``original_id``;
-  ``keep_unreferenced=True`` keeps them.
+* Vertices that no triangle uses are dropped by default, in one place for
+  every front (core, filters, accessor, command), with an
+  ``UnreferencedVerticesWarning``, the count ``unreferenced_dropped`` and
+  ``original_id``; ``keep_unreferenced=True`` keeps them.
 """
+
+import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 import pyvista as pv
-from conftest import fingerprint
+from conftest import dataset_fingerprint, fingerprint
 
 from fancloud_vtk import (
     UnreferencedVerticesWarning,
@@ -24,6 +28,8 @@ from fancloud_vtk import (
     reduce,
     refine,
 )
+from fancloud_vtk.algorithms import FanCloudEntropyFilter, FanCloudFilter, FanCloudReduceFilter, run
+from fancloud_vtk.algorithms.convert import fancloud_from_vtk
 from fancloud_vtk.core import _mesh_kernels as MK
 
 VALENCE = 2000
@@ -166,6 +172,14 @@ def mesh_with_strays(seed: int = 0):
     return points, tri, rgb, label, used, stray
 
 
+def polydata_with_strays():
+    points, tri, rgb, label, used, stray = mesh_with_strays()
+    mesh = pv.PolyData.from_regular_faces(points, tri)
+    mesh.point_data["RGB"] = rgb
+    mesh.point_data["label"] = label
+    return mesh, used
+
+
 def check_kept(points, label, used, out_points, out_label, original_id):
     """The kept vertices are the used ones, in order, with their point data."""
     np.testing.assert_array_equal(original_id, used)
@@ -225,3 +239,150 @@ def test_core_triangle_mesh_input_goes_the_same_way():
     with pytest.warns(UnreferencedVerticesWarning, match=f"^{STRAYS} of"):
         ent = entropy(mesh)
     assert ent.total.shape == (len(used),)
+
+
+def test_filter_drops_them_and_counts_them_in_the_field_data():
+    mesh, used = polydata_with_strays()
+    before = dataset_fingerprint(mesh)
+    alg = FanCloudEntropyFilter()
+    alg.SetInputDataObject(mesh)
+    with pytest.warns(UnreferencedVerticesWarning, match=f"^{STRAYS} of"):
+        out = pv.wrap(run(alg))
+    assert dataset_fingerprint(mesh) == before
+    assert out.n_points == len(used)
+    assert int(out.field_data["unreferenced_dropped"][0]) == STRAYS
+    assert str(out.field_data["fancloud_input"][0]) == "triangle mesh"
+    check_kept(np.asarray(mesh.points), mesh["label"], used, out.points, out["label"],
+               out["original_id"])
+    np.testing.assert_array_equal(out["RGB"], mesh["RGB"][used])
+
+    alg.SetKeepUnreferenced(True)
+    out = pv.wrap(run(alg))  # no warning (pytest turns warnings into errors)
+    assert out.n_points == mesh.n_points
+    assert int(out.field_data["unreferenced_dropped"][0]) == 0
+    assert dataset_fingerprint(mesh) == before
+
+
+def test_fan_and_reduce_filters_on_a_mesh_and_on_points():
+    mesh, used = polydata_with_strays()
+    fans = FanCloudFilter()
+    fans.SetInputDataObject(mesh)
+    with pytest.warns(UnreferencedVerticesWarning):
+        fc = fancloud_from_vtk(run(fans))
+    assert fc.n_points == len(used)
+    np.testing.assert_array_equal(fc.point_data["original_id"], used)
+    out = pv.wrap(fans.GetOutputDataObject(0))
+    assert int(out.field_data["unreferenced_dropped"][0]) == STRAYS
+
+    fans.SetInputDataObject(pv.PolyData(np.asarray(mesh.points)))  # points only: nothing to drop
+    out = pv.wrap(run(fans))
+    assert out.n_points == mesh.n_points and "unreferenced_dropped" not in out.field_data
+
+    red = FanCloudReduceFilter(n_points=100, mesh=True)
+    red.SetInputDataObject(mesh)
+    with pytest.warns(UnreferencedVerticesWarning):
+        out = pv.wrap(run(red))
+    assert out.n_points == 100 and int(out.field_data["unreferenced_dropped"][0]) == STRAYS
+    assert np.isin(out["original_id"], used).all()
+    np.testing.assert_array_equal(out["label"], mesh["label"][out["original_id"]])
+
+
+ACCESSOR_CALLS = {
+    "fans": {},
+    "mesh": {},
+    "entropy": {},
+    "reduce": {"n_points": 100},
+    "refine": {"factor": 1.2, "move": False},
+    "selective": {"n_points": 100, "region_center": (0.0, 0.0, 0.5), "region_radius": 0.3},
+}
+
+
+@pytest.mark.parametrize("verb", list(ACCESSOR_CALLS))
+def test_accessor_verbs_drop_them(verb):
+    mesh, used = polydata_with_strays()
+    before = dataset_fingerprint(mesh)
+    with pytest.warns(UnreferencedVerticesWarning, match=f"^{STRAYS} of"):
+        out = getattr(mesh.fancloud, verb)(**ACCESSOR_CALLS[verb])
+    assert dataset_fingerprint(mesh) == before
+    assert int(out.field_data["unreferenced_dropped"][0]) == STRAYS
+    ids = out["original_id"]
+    kept = ids >= 0  # refine: -1 on inserted points
+    assert np.isin(ids[kept], used).all()
+    np.testing.assert_array_equal(out["label"][kept], mesh["label"][ids[kept]])
+    # (selective: the reinserted points are placed back by their detail, to rounding)
+    np.testing.assert_allclose(out.points[kept], mesh.points[ids[kept]], atol=1e-12)
+
+    out = getattr(mesh.fancloud, verb)(keep_unreferenced=True, **ACCESSOR_CALLS[verb])
+    assert int(out.field_data["unreferenced_dropped"][0]) == 0
+    assert dataset_fingerprint(mesh) == before
+
+
+def test_accessor_vdfc_and_hierarchy_drop_them():
+    mesh, used = polydata_with_strays()
+    with pytest.warns(UnreferencedVerticesWarning):
+        vd = mesh.fancloud.vdfc()
+    assert vd.n_leaves == len(used) and len(vd.roots) == 1
+    assert vd.unreferenced_dropped == STRAYS
+    front = vd.front(CAMERA)
+    assert int(front.field_data["unreferenced_dropped"][0]) == STRAYS
+    vd = mesh.fancloud.vdfc(keep_unreferenced=True)
+    assert vd.n_leaves == mesh.n_points and vd.unreferenced_dropped == 0
+    with pytest.warns(UnreferencedVerticesWarning):
+        h = mesh.fancloud.hierarchy(100)
+    assert h.source.n_points == len(used)
+    assert mesh.fancloud.hierarchy(100, keep_unreferenced=True).source.n_points == mesh.n_points
+
+
+def test_unstructured_grid_of_triangles():
+    mesh, used = polydata_with_strays()
+    grid = mesh.cast_to_unstructured_grid()
+    with pytest.warns(UnreferencedVerticesWarning, match=f"^{STRAYS} of"):
+        out = grid.fancloud.entropy()
+    assert out.n_points == len(used)
+    np.testing.assert_array_equal(out["original_id"], used)
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "fancloud_vtk.cli", *map(str, args)],
+                          capture_output=True, text=True, timeout=600)
+
+
+def dropped_lines(stderr: str) -> list[str]:
+    return [line for line in stderr.splitlines() if "in no triangle and were dropped" in line]
+
+
+def test_cli_drops_them_with_one_warning_line(tmp_path):
+    mesh, used = polydata_with_strays()
+    src = tmp_path / "strays.vtk"
+    mesh.save(src)
+    out = tmp_path / "entropy.vtp"
+    res = run_cli("entropy", src, "-o", out)
+    assert res.returncode == 0, res.stderr
+    lines = dropped_lines(res.stderr)
+    assert len(lines) == 1 and lines[0].startswith(f"fancloud entropy: warning: {STRAYS} of ")
+    assert f"{STRAYS} unreferenced vertices dropped" in res.stdout
+    result = pv.read(out)
+    assert result.n_points == len(used)
+    assert int(result.field_data["unreferenced_dropped"][0]) == STRAYS
+    np.testing.assert_array_equal(result["original_id"], used)
+    np.testing.assert_array_equal(result["RGB"], mesh["RGB"][used])
+
+    res = run_cli("reduce", src, "-o", out, "--n", "100", "--keep-unreferenced")
+    assert res.returncode == 0, res.stderr
+    assert dropped_lines(res.stderr) == []
+    assert int(pv.read(out).field_data["unreferenced_dropped"][0]) == 0
+
+
+def test_cli_mesh_of_the_airplane_warns_in_one_line(tmp_path):
+    """pymeshlab's airplane.obj has 1,617 vertices that no face uses, some off the surface."""
+    from fancloud_vtk.data import pymeshlab_sample
+
+    out = tmp_path / "airplane.vtp"
+    res = run_cli("mesh", pymeshlab_sample("airplane.obj"), "-o", out)
+    assert res.returncode == 0, res.stderr
+    lines = dropped_lines(res.stderr)
+    assert len(lines) == 1
+    assert re.match(r"fancloud mesh: warning: 1617 of the mesh's 7017 vertices", lines[0])
+    result = pv.read(out)
+    assert result.n_points == 7017 - 1617
+    assert int(result.field_data["unreferenced_dropped"][0]) == 1617

@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 import pyvista as pv
 
-from fancloud_vtk import build_fans
+import fancloud_vtk.algorithms as algorithms
+from fancloud_vtk import build_fans, fan_cloud_of_mesh
 from fancloud_vtk.accessor import FanCloudAccessor
 from fancloud_vtk.algorithms import FanCloudFilter
 from fancloud_vtk.cli import make_parser
-from fancloud_vtk.params import FAN_PARAMS, Param, check_params, markdown_table
+from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS, Param, check_params, markdown_table
 
 IDS = [p.name for p in FAN_PARAMS]
 
@@ -62,11 +63,41 @@ def test_accessor_signature_and_docstring(param):
 
 def test_no_front_has_extra_parameters():
     names = {p.name for p in FAN_PARAMS}
+    input_names = {p.name for p in INPUT_PARAMS}
     accessor = set(inspect.signature(FanCloudAccessor.fans).parameters) - {"self", "progress_bar"}
-    assert accessor == names
-    assert set(FanCloudFilter().parameters) == names
+    assert accessor == names | input_names
+    assert set(FanCloudFilter().parameters) == names | input_names
     core_only = {"points", "normals", "point_data", "workers", "progress"}
     assert set(inspect.signature(build_fans).parameters) - core_only == names
+
+
+#: every filter, accessor verb and command that reads a dataset
+FILTERS = [name for name in algorithms.__all__ if name.endswith("Filter")]
+VERBS = ["fans", "mesh", "entropy", "reduce", "selective", "refine", "vdfc"]
+
+
+@pytest.mark.parametrize("param", INPUT_PARAMS, ids=[p.name for p in INPUT_PARAMS])
+def test_input_parameters_reach_every_front(param):
+    """INPUT_PARAMS (how a triangle mesh input is read): the core's keyword, every filter's
+    setter, every accessor verb's keyword and every command's flag, with one default."""
+    sig = inspect.signature(fan_cloud_of_mesh)
+    assert sig.parameters[param.name].default == param.default
+    assert sig.parameters[param.name].kind is inspect.Parameter.KEYWORD_ONLY
+    for name in FILTERS:
+        alg = getattr(algorithms, name)()
+        assert getattr(alg, "Get" + param.vtk_name)() == param.default, name
+        assert callable(getattr(alg, "Set" + param.vtk_name)), name
+    for verb in VERBS:
+        p = inspect.signature(getattr(FanCloudAccessor, verb)).parameters[param.name]
+        assert p.kind is inspect.Parameter.KEYWORD_ONLY and p.default == param.default, verb
+        assert f"{param.name} : {param.kind}, default: {param.default!r}" in \
+            getattr(FanCloudAccessor, verb).__doc__
+    sub = next(a for a in make_parser()._actions if a.dest == "command")
+    for command in VERBS:
+        action = next(a for a in sub.choices[command]._actions if a.dest == param.name)
+        assert param.cli_flag in action.option_strings and action.default == param.default
+    args = sub.choices["mesh"].parse_args(["in.ply", "-o", "o.ply", param.cli_flag])
+    assert getattr(args, param.name) is True
 
 
 def test_cli_flags_reach_the_values():

@@ -26,6 +26,7 @@ from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 from vtkmodules.vtkCommonCore import VTK_FLOAT, VTK_UNSIGNED_CHAR, vtkCommand, vtkPoints
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
 
+from fancloud_vtk.core.entropy import UNREFERENCED_DROPPED
 from fancloud_vtk.core.mesh import TriangleMesh
 from fancloud_vtk.core.model import COLOR_NAMES, FanCloud
 
@@ -131,7 +132,11 @@ def _triangle_polydata(points, triangles, normals, point_data) -> vtkPolyData:
 
 
 def fancloud_to_vtk(fc: FanCloud) -> vtkPolyData:
-    """The fan cloud as ``vtkPolyData``: points, distinct triangles, arrays."""
+    """The fan cloud as ``vtkPolyData``: points, distinct triangles, arrays.
+
+    The fan cloud of a triangle mesh also gets the field array
+    ``unreferenced_dropped`` (from its ``info``, see :func:`add_unreferenced_field`).
+    """
     out = _triangle_polydata(fc.points, fc.triangles(), fc.normals, fc.point_data)
     pd = out.GetPointData()
     pd.AddArray(_to_vtk_array(fc.open.astype(np.uint8), FAN_OPEN))
@@ -139,7 +144,18 @@ def fancloud_to_vtk(fc: FanCloud) -> vtkPolyData:
     fd = out.GetFieldData()
     fd.AddArray(_to_vtk_array(fc.offsets.astype(np.int64), FAN_OFFSETS))
     fd.AddArray(_to_vtk_array(fc.ring.astype(np.int64), FAN_RING))
+    add_unreferenced_field(out, fc.info.get(UNREFERENCED_DROPPED))
     return out
+
+
+def add_unreferenced_field(dataset, dropped: int | None) -> None:
+    """The one-value int64 field array ``unreferenced_dropped``: how many vertices of a
+    triangle mesh input no triangle used and were dropped (0 with ``keep_unreferenced``;
+    ``None``, the input was no mesh: no array). The value is ``info["unreferenced_dropped"]``
+    of the input's fan cloud."""
+    if dropped is not None:
+        dataset.GetFieldData().AddArray(
+            _to_vtk_array(np.array([dropped], np.int64), UNREFERENCED_DROPPED))
 
 
 def front_to_vtk(front) -> vtkPolyData:
@@ -426,30 +442,94 @@ def triangles_of(dataset) -> np.ndarray | None:
     return np.array(conn, dtype=np.int64).reshape(-1, 3)
 
 
-def input_fan_cloud(dataset, fan_values: dict, progress=None) -> tuple[FanCloud, str]:
+def input_fan_cloud(dataset, fan_values: dict, progress=None, *,
+                    keep_unreferenced: bool = False) -> tuple[FanCloud, str]:
     """The fan cloud of a filter's input and which kind of input it was.
 
     * a fan cloud (``fan_offsets``/``fan_ring`` arrays): its rings as they are;
     * a triangle mesh (polys or strips of a polydata, 2-d cells of an
       unstructured grid: :func:`triangles_of`): every vertex's one-ring is its
-      fan, its ``Normals`` point array (if any) the normals;
+      fan, its ``Normals`` point array (if any) the normals; the vertices that
+      no triangle uses are dropped unless ``keep_unreferenced``;
     * any other point set: the fans are built with ``fan_values``.
-    """
-    from fancloud_vtk.core.entropy import fan_cloud_of_mesh
-    from fancloud_vtk.core.fans import build_fans
 
+    See :func:`fan_cloud_of_arrays`, which the ``fancloud`` command calls on
+    the arrays of a file.
+    """
     if is_fancloud(dataset):
         return fancloud_from_vtk(dataset), KIND_FANS
+    return fan_cloud_of_arrays(*_input_arrays(dataset), fan_values, progress,
+                               keep_unreferenced=keep_unreferenced)
+
+
+def point_fans(dataset, fan_values: dict, progress=None, *,
+               keep_unreferenced: bool = False) -> FanCloud:
+    """The fans built from the points of a filter's input (``FanCloudFilter``,
+    ``FanCloudMeshFilter``), with ``fan_values``: :func:`fans_of_points`."""
+    return fans_of_points(*_input_arrays(dataset), fan_values, progress,
+                          keep_unreferenced=keep_unreferenced)
+
+
+def fan_cloud_of_arrays(points, normals, point_data, triangles, fan_values: dict,
+                        progress=None, *, keep_unreferenced: bool = False
+                        ) -> tuple[FanCloud, str]:
+    """The fan cloud of an input that is not a fan cloud, from its arrays, and its kind.
+
+    With ``triangles`` (a triangle mesh) every vertex's one-ring is its fan
+    (:func:`~fancloud_vtk.core.entropy.fan_cloud_of_mesh`: the vertices that
+    no triangle uses are dropped unless ``keep_unreferenced``; ``normals``
+    with a zero vector count as unknown); without, the fans of the points are
+    built with ``fan_values``.
+    """
+    from fancloud_vtk.core.entropy import fan_cloud_of_mesh
+
+    if triangles is None:
+        return _built_fans(points, normals, point_data, fan_values, progress), KIND_POINTS
+    if normals is not None and not (np.linalg.norm(normals, axis=1) > 0).all():
+        normals = None  # "unknown" zero normals: take the mesh's own
+    return fan_cloud_of_mesh(points, triangles, normals=normals, point_data=point_data,
+                             keep_unreferenced=keep_unreferenced), KIND_MESH
+
+
+def fans_of_points(points, normals, point_data, triangles, fan_values: dict, progress=None,
+                   *, keep_unreferenced: bool = False) -> FanCloud:
+    """The fans built from an input's points with ``fan_values``, its cells unused but for
+    one thing: of a triangle mesh (``triangles`` given) only the vertices of its triangles
+    are taken, unless ``keep_unreferenced``
+    (:func:`~fancloud_vtk.core.entropy.drop_unreferenced`: a warning, the point array
+    ``original_id``, the count in ``info["unreferenced_dropped"]``)."""
+    from fancloud_vtk.core.entropy import drop_unreferenced
+
+    if triangles is None:
+        return _built_fans(points, normals, point_data, fan_values, progress)
+    mesh = drop_unreferenced(points, triangles, normals, point_data,
+                             keep_unreferenced=keep_unreferenced, stacklevel=2)
+    fc = _built_fans(mesh.points, mesh.normals, mesh.point_data, fan_values, progress)
+    fc.info[UNREFERENCED_DROPPED] = mesh.dropped
+    return fc
+
+
+def _input_arrays(dataset):
+    """(points, normals or None, the other point arrays, triangles or None) of an input."""
     points = points_of(dataset)
     arrays = point_arrays(dataset)
     normals = pop_normals(arrays)
-    tri = triangles_of(dataset)
-    if tri is not None:
-        if normals is not None and not (np.linalg.norm(normals, axis=1) > 0).all():
-            normals = None  # "unknown" zero normals: take the mesh's own
-        return fan_cloud_of_mesh(points, tri, normals=normals, point_data=arrays), KIND_MESH
-    fc = build_fans(points, normals=normals, point_data=arrays, progress=progress, **fan_values)
-    return fc, KIND_POINTS
+    return points, normals, arrays, triangles_of(dataset)
+
+
+def _built_fans(points, normals, arrays, fan_values, progress) -> FanCloud:
+    from fancloud_vtk.core.fans import build_fans
+
+    return build_fans(points, normals=normals, point_data=arrays, progress=progress,
+                      **fan_values)
+
+
+def mark_input(dataset, kind: str, source: FanCloud) -> None:
+    """The field arrays of a filter's output that tell its input: ``fancloud_input`` (the
+    kind, :func:`input_fan_cloud`) and, for a triangle mesh, ``unreferenced_dropped``
+    (:func:`add_unreferenced_field`; ``source`` is the input's fan cloud)."""
+    add_string_field(dataset, INPUT_KIND, kind)
+    add_unreferenced_field(dataset, source.info.get(UNREFERENCED_DROPPED))
 
 
 def add_string_field(dataset, name: str, value: str) -> None:

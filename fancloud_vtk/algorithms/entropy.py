@@ -5,35 +5,36 @@ from __future__ import annotations
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
 from fancloud_vtk.core.entropy import entropy
-from fancloud_vtk.params import ENTROPY_PARAMS, FAN_PARAMS
+from fancloud_vtk.params import ENTROPY_PARAMS, FAN_PARAMS, INPUT_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
 from .convert import (
-    INPUT_KIND,
     KIND_POINTS,
     _to_vtk_array,
-    add_string_field,
     fancloud_to_vtk,
     input_fan_cloud,
+    mark_input,
 )
 
 
 def fan_values(values: dict) -> dict:
-    """The fan parameters among a filter's values."""
+    """The fan parameters (the keywords of ``build_fans``) among a filter's values."""
     return {p.name: values[p.name] for p in FAN_PARAMS}
 
 
-@with_parameters(FAN_PARAMS + ENTROPY_PARAMS)
+@with_parameters(FAN_PARAMS + INPUT_PARAMS + ENTROPY_PARAMS)
 class FanCloudEntropyFilter(FanCloudAlgorithm):
     """The entropy of every point and its four terms, as point arrays.
 
     Takes three kinds of input and says which in the string field array
     ``fancloud_input``: a fan cloud (its rings are used), a triangle mesh
-    (every vertex's one-ring is its fan) or a plain point set (its fans are
-    built first with this filter's fan parameters). The output is the input
-    (or, for a point set, its fan cloud) with the point arrays ``entropy``,
-    ``entropy_dist``, ``entropy_curv``, ``entropy_cc`` and ``entropy_col``
-    added; the input is not modified.
+    (every vertex's one-ring is its fan; the vertices that no triangle uses
+    are dropped unless ``keep_unreferenced``, and counted in the field array
+    ``unreferenced_dropped``) or a plain point set (its fans are built first
+    with this filter's fan parameters). The output is the input (or, for a
+    point set, a grid or a mesh that lost vertices, its fan cloud) with the
+    point arrays ``entropy``, ``entropy_dist``, ``entropy_curv``,
+    ``entropy_cc`` and ``entropy_col`` added; the input is not modified.
 
     Examples
     --------
@@ -55,9 +56,12 @@ class FanCloudEntropyFilter(FanCloudAlgorithm):
     def execute(self, dataset):
         values = self.parameters
         fc, kind = input_fan_cloud(dataset, fan_values(values),
-                                   lambda f, m: self._progress(0.8 * f, m))
+                                   lambda f, m: self._progress(0.8 * f, m),
+                                   keep_unreferenced=values["keep_unreferenced"])
         ent = entropy(fc, values["weights"], colors=values["color_array"] or None)
-        if kind == KIND_POINTS or not dataset.IsA("vtkPolyData"):
+        if (kind == KIND_POINTS or not dataset.IsA("vtkPolyData")
+                or fc.n_points != dataset.GetNumberOfPoints()):
+            # a point set, a grid, or a mesh whose unreferenced vertices were dropped
             out = fancloud_to_vtk(fc)
         else:
             out = vtkPolyData()
@@ -72,6 +76,6 @@ class FanCloudEntropyFilter(FanCloudAlgorithm):
         for name, arr in ent.as_dict().items():
             out.GetPointData().AddArray(_to_vtk_array(arr, name))
         out.GetPointData().SetActiveScalars("entropy")
-        add_string_field(out, INPUT_KIND, kind)
+        mark_input(out, kind, fc)
         self._progress(1.0, "done")
         return out

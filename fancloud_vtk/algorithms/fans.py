@@ -2,19 +2,23 @@
 
 from __future__ import annotations
 
-from fancloud_vtk.core.fans import build_fans
-from fancloud_vtk.params import FAN_PARAMS
+from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
-from .convert import fancloud_to_vtk, point_arrays, points_of, pop_normals
+from .convert import fancloud_to_vtk, point_fans
+from .entropy import fan_values
 
 
-@with_parameters(FAN_PARAMS)
+@with_parameters(FAN_PARAMS + INPUT_PARAMS)
 class FanCloudFilter(FanCloudAlgorithm):
     """Build the fan cloud of any ``vtkPointSet``.
 
-    Only the points are used (cells are ignored); every point array passes
-    through. A ``Normals`` array on the input orients the fan normals. The
+    Only the points are used (cells are ignored), but of a triangle mesh only
+    the vertices of its triangles unless ``keep_unreferenced`` (the others are
+    dropped with a warning and counted in the field array
+    ``unreferenced_dropped``; ``original_id`` maps the points to the input's).
+    Every point array passes through. A ``Normals`` array on the input orients
+    the fan normals. The
     output is ``vtkPolyData``: the points, the distinct fan triangles as
     polys, point arrays ``Normals``, ``fan_open``, ``fan_rotated`` and field
     arrays ``fan_offsets``/``fan_ring`` (see docs/data_model.md).
@@ -44,9 +48,7 @@ class FanCloudFilter(FanCloudAlgorithm):
         super().__init__(inputType="vtkPointSet", outputType="vtkPolyData", **params)
 
     def execute(self, dataset):
-        points = points_of(dataset)
-        arrays = point_arrays(dataset)
-        normals = pop_normals(arrays)
-        fc = build_fans(points, normals=normals, point_data=arrays, progress=self._progress,
-                        **self._values)
+        values = self.parameters
+        fc = point_fans(dataset, fan_values(values), self._progress,
+                        keep_unreferenced=values["keep_unreferenced"])
         return fancloud_to_vtk(fc)

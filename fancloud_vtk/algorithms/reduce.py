@@ -7,15 +7,14 @@ import numpy as np
 from fancloud_vtk.core.fans import Cancelled
 from fancloud_vtk.core.mesh import fan_cloud_to_mesh
 from fancloud_vtk.core.reduction import hierarchy, laplacian_smooth, reduce, target_count
-from fancloud_vtk.params import FAN_PARAMS, REDUCE_PARAMS, SELECTIVE_PARAMS
+from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS, REDUCE_PARAMS, SELECTIVE_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
 from .convert import (
-    INPUT_KIND,
     KIND_MESH,
-    add_string_field,
     fancloud_to_vtk,
     input_fan_cloud,
+    mark_input,
     mesh_to_vtk,
 )
 from .entropy import fan_values
@@ -40,7 +39,7 @@ def _reduce_values(values: dict) -> dict:
             "colors": values["color_array"] or None, "exact": values["exact"]}
 
 
-@with_parameters(FAN_PARAMS + REDUCE_PARAMS)
+@with_parameters(FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS)
 class FanCloudReduceFilter(FanCloudAlgorithm):
     """Reduce a fan cloud, mesh or point set by entropy to an exact number of points.
 
@@ -51,6 +50,8 @@ class FanCloudReduceFilter(FanCloudAlgorithm):
     count. The output is the reduced fan cloud (or, with ``mesh``, its
     triangle mesh): the kept points with their point arrays and the point
     array ``original_id``, the index of every output point in the input.
+    A mesh's vertices that no triangle uses are dropped first unless
+    ``keep_unreferenced`` (field array ``unreferenced_dropped``).
 
     Examples
     --------
@@ -71,22 +72,24 @@ class FanCloudReduceFilter(FanCloudAlgorithm):
     def execute(self, dataset):
         values = self.parameters
         fc, kind = input_fan_cloud(dataset, fan_values(values),
-                                   lambda f, m: self._progress(0.3 * f, m))
+                                   lambda f, m: self._progress(0.3 * f, m),
+                                   keep_unreferenced=values["keep_unreferenced"])
         small = reduce(fc, **_amount(values), **_reduce_values(values),
                        progress=lambda f, m: self._progress(0.3 + 0.6 * f, m))
-        return fan_cloud_output(self, small, kind, values["mesh"])
+        return fan_cloud_output(self, small, kind, values["mesh"], fc)
 
 
-def fan_cloud_output(alg: FanCloudAlgorithm, fc, kind: str, mesh: bool):
+def fan_cloud_output(alg: FanCloudAlgorithm, fc, kind: str, mesh: bool, source):
     """The filter's output: the fan cloud, or with ``mesh`` its triangle mesh, saying which
-    kind of input it came from (``fancloud_input``)."""
+    kind of input it came from (:func:`~.convert.mark_input`; ``source``: the input's fan
+    cloud)."""
     if mesh:
         if alg._progress(0.9, "mesh"):
             raise Cancelled("meshing was cancelled")
         out = mesh_to_vtk(fan_cloud_to_mesh(fc, rings=mesh_rings(kind)))
     else:
         out = fancloud_to_vtk(fc)
-    add_string_field(out, INPUT_KIND, kind)
+    mark_input(out, kind, source)
     alg._progress(1.0, "done")
     return out
 
@@ -124,7 +127,7 @@ def selective_refinement(fc, values: dict, progress=None):
     return h.selective(region, base=coarse, **fan_values(values))
 
 
-@with_parameters(FAN_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS)
+@with_parameters(FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS)
 class FanCloudSelectiveRefineFilter(FanCloudAlgorithm):
     """Reduce, optionally smooth the coarse level, then refine only a region (Figure 11).
 
@@ -160,9 +163,10 @@ class FanCloudSelectiveRefineFilter(FanCloudAlgorithm):
         values = self.parameters
         region_of(values)  # a bad region fails before the fans are built
         fc, kind = input_fan_cloud(dataset, fan_values(values),
-                                   lambda f, m: self._progress(0.3 * f, m))
+                                   lambda f, m: self._progress(0.3 * f, m),
+                                   keep_unreferenced=values["keep_unreferenced"])
         out = fancloud_to_vtk(selective_refinement(
             fc, values, lambda f, m: self._progress(0.3 + 0.7 * f, m)))
-        add_string_field(out, INPUT_KIND, kind)
+        mark_input(out, kind, fc)
         self._progress(1.0, "done")
         return out

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from fancloud_vtk.core.refinement import refine
-from fancloud_vtk.params import FAN_PARAMS, REFINE_PARAMS
+from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS, REFINE_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
 from .convert import input_fan_cloud
@@ -19,7 +19,7 @@ def refine_arguments(values: dict) -> dict:
             "move": values["move"], "exact": values["exact"]}
 
 
-@with_parameters(FAN_PARAMS + REFINE_PARAMS)
+@with_parameters(FAN_PARAMS + INPUT_PARAMS + REFINE_PARAMS)
 class FanCloudRefineFilter(FanCloudAlgorithm):
     """Refine a fan cloud, mesh or point set beyond its resolution by entropy (section 7).
 
@@ -52,7 +52,8 @@ class FanCloudRefineFilter(FanCloudAlgorithm):
     def execute(self, dataset):
         values = self.parameters
         fc, kind = input_fan_cloud(dataset, fan_values(values),
-                                   lambda f, m: self._progress(0.3 * f, m))
+                                   lambda f, m: self._progress(0.3 * f, m),
+                                   keep_unreferenced=values["keep_unreferenced"])
         fine = refine(fc, **refine_arguments(values),
                       progress=lambda f, m: self._progress(0.3 + 0.6 * f, m))
-        return fan_cloud_output(self, fine, kind, values["mesh"])
+        return fan_cloud_output(self, fine, kind, values["mesh"], fc)

@@ -22,11 +22,12 @@ import time
 import numpy as np
 from vtkmodules.vtkCommonDataModel import vtkImageData
 
+from fancloud_vtk.core.entropy import UNREFERENCED_DROPPED
 from fancloud_vtk.core.vdfc import Camera, ViewDependentFanCloud, terrain_blocks, terrain_fan_cloud
-from fancloud_vtk.params import FAN_PARAMS, VDFC_PARAMS
+from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS, VDFC_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
-from .convert import input_fan_cloud, point_arrays, vtk_to_numpy
+from .convert import add_unreferenced_field, input_fan_cloud, point_arrays, vtk_to_numpy
 from .entropy import fan_values
 
 #: Share of the bounds' diagonal used as e_max when the parameter is 0.
@@ -64,7 +65,12 @@ def height_field_of_image(image, array: str | None = None):
 
 
 def build_forest(dataset, values: dict, progress=None) -> tuple[ViewDependentFanCloud, str]:
-    """The forest of a filter input: a height field image, a fan cloud, a mesh or points."""
+    """The forest of a filter input: a height field image, a fan cloud, a mesh or points.
+
+    The forest's attribute ``unreferenced_dropped`` is the number of a mesh's vertices
+    that no triangle used and were dropped (``None`` for other inputs; not saved by
+    ``save``).
+    """
     blocks = None
     if isinstance(dataset, vtkImageData) or dataset.IsA("vtkImageData"):
         heights, spacing, origin, others = height_field_of_image(dataset)
@@ -73,8 +79,11 @@ def build_forest(dataset, values: dict, progress=None) -> tuple[ViewDependentFan
             blocks = terrain_blocks(heights.shape, values["block_size"])
         kind = KIND_HEIGHT_FIELD
     else:
-        fc, kind = input_fan_cloud(dataset, fan_values(values), progress)
-    return forest_of(fc, values, blocks, progress), kind
+        fc, kind = input_fan_cloud(dataset, fan_values(values), progress,
+                                   keep_unreferenced=values["keep_unreferenced"])
+    vd = forest_of(fc, values, blocks, progress)
+    vd.unreferenced_dropped = fc.info.get(UNREFERENCED_DROPPED)
+    return vd, kind
 
 
 def forest_of(fc, values: dict, blocks=None, progress=None) -> ViewDependentFanCloud:
@@ -93,16 +102,18 @@ def e_max_of(vd: ViewDependentFanCloud, e_max: float) -> float:
 
 
 _BUILD = ("merge", "weights", "color_array", "n_roots", "block_size") + \
-    tuple(p.name for p in FAN_PARAMS)
+    tuple(p.name for p in FAN_PARAMS + INPUT_PARAMS)
 
 
-@with_parameters(FAN_PARAMS + VDFC_PARAMS)
+@with_parameters(FAN_PARAMS + INPUT_PARAMS + VDFC_PARAMS)
 class FanCloudViewDependentFilter(FanCloudAlgorithm):
     """The view-dependent fan cloud of the input, for a camera (section 8).
 
     The input is a height field (2-d ``vtkImageData``, its scalars the
     heights), a fan cloud, a triangle mesh or a point set (fans built first
-    with this filter's fan parameters). The merge forest is built once and
+    with this filter's fan parameters). A mesh's vertices that no triangle
+    uses are dropped unless ``keep_unreferenced`` (the fronts' field array
+    ``unreferenced_dropped`` counts them). The merge forest is built once and
     kept; each update outputs the active front for the camera: the active
     points and their distinct triangles, with point arrays ``node_id``,
     ``level`` and ``error``, ``Normals`` and the colours. The front moves
@@ -221,7 +232,9 @@ class FanCloudViewDependentFilter(FanCloudAlgorithm):
                                 superfluous=values["superfluous"])
         self.last_stats = dict(front.stats)
         self._progress(1.0, "front")
-        return front.to_vtk()
+        out = front.to_vtk()
+        add_unreferenced_field(out, getattr(vd, "unreferenced_dropped", None))
+        return out
 
 
 def image_of_heights(heights, spacing=1.0, origin=(0.0, 0.0), name: str = "height"):
