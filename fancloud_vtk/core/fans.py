@@ -104,8 +104,9 @@ def build_fans(
         of the circle that the ``k`` nearest cover (up to 3/4), so that a
         point on a boundary gets about the spacing of the points inside. A
         fan still open is retried with the candidates within ``reach`` times
-        the larger of the two points' spacings (where the density jumps). Fans then do not bridge gaps of the sampling
-        (holes and occlusion gaps of range scans) nor reach out to stray
+        the larger of the two points' spacings (where the density jumps).
+        Fans then do not bridge gaps of the sampling (holes and occlusion
+        gaps of range scans) nor reach out to stray
         clusters, and isolated clusters stay separate. ``0`` turns the
         limit off (the paper's rule). On random samples of smooth surfaces
         no fan is left open by it (100k and 300k points on a sphere).
