@@ -10,7 +10,7 @@ fancloud_vtk`` alone needs no VTK.
 
 from .core.entropy import Entropy, UnreferencedVerticesWarning, entropy, fan_cloud_of_mesh
 from .core.fans import Cancelled, DuplicatePointsWarning, build_fans
-from .core.mesh import TriangleMesh, fan_cloud_to_mesh
+from .core.mesh import DoubtfulMeshWarning, TriangleMesh, fan_cloud_to_mesh
 from .core.model import FanCloud, find_color_array
 from .core.reduction import Hierarchy, hierarchy, laplacian_smooth, reduce
 from .core.refinement import refine
@@ -50,6 +50,7 @@ def __dir__() -> list[str]:
 
 __all__ = [
     "Cancelled",
+    "DoubtfulMeshWarning",
     "DuplicatePointsWarning",
     "Entropy",
     "FanCloud",

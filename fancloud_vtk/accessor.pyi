@@ -82,6 +82,8 @@ class FanCloudAccessor:
         close_holes: bool = True,
         max_hole: int = 32,
         max_hole_diameter: float = 6.0,
+        remove_self_intersections: bool = True,
+        min_component: int = 20,
         self_intersections: bool = True,
         progress_bar: bool = False,
     ) -> pv.PolyData:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import os
 import time
+import warnings
 
 
 def render_fancloud(fc, path: str, title: str = "") -> None:
@@ -89,15 +90,20 @@ def render_panels(panels, path: str) -> None:
     from vtkmodules.vtkCommonCore import vtkLogger
 
     from fancloud_vtk.algorithms.convert import mesh_to_vtk
-    from fancloud_vtk.core.mesh import fan_cloud_to_mesh
+    from fancloud_vtk.core.mesh import DoubtfulMeshWarning, fan_cloud_to_mesh
 
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)  # see render_fancloud
     pl = pv.Plotter(off_screen=True, shape=(1, len(panels)), window_size=(700 * len(panels), 700),
                     border=False)
     for i, (title, fc, *marked) in enumerate(panels):
         pl.subplot(0, i)
-        pl.add_text(title, font_size=10)
-        mesh = fan_cloud_to_mesh(fc, self_intersections=False)
+        # a doubtful mesh (a reduction that broke the surface) is said in the panel
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", DoubtfulMeshWarning)
+            mesh = fan_cloud_to_mesh(fc, self_intersections=False)
+        doubts = [str(w.message).removeprefix("fan_cloud_to_mesh: ").split(" (")[0]
+                  for w in caught if issubclass(w.category, DoubtfulMeshWarning)]
+        pl.add_text(title + "".join(f"\nmesh: {d}" for d in doubts), font_size=10)
         pl.add_mesh(pv.wrap(mesh_to_vtk(mesh)), color="#d8c8a8", show_edges=True,
                     edge_color="#9c8f75", line_width=0.3, specular=0.3)
         if marked and len(marked[0]):
@@ -266,15 +272,18 @@ def run_demo(out_dir: str = "fancloud_demo", quiet: bool = False) -> dict:
     from fancloud_vtk.algorithms.convert import mesh_to_vtk, write_mesh
     from fancloud_vtk.cli import _print_mesh_summary, _print_summary, _Progress
     from fancloud_vtk.core.fans import build_fans
-    from fancloud_vtk.core.mesh import fan_cloud_to_mesh
+    from fancloud_vtk.core.mesh import DoubtfulMeshWarning, fan_cloud_to_mesh
     from fancloud_vtk.data import bunny_path
     from fancloud_vtk.io import read_point_cloud
 
     os.makedirs(out_dir, exist_ok=True)
     src = read_point_cloud(bunny_path())
     t0 = time.perf_counter()
-    # compile the numba kernels (cached after the first run)
-    fan_cloud_to_mesh(build_fans(src.points[:500]))
+    # compile the numba kernels (cached after the first run); a patch of 500 points is no
+    # surface to judge
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DoubtfulMeshWarning)
+        fan_cloud_to_mesh(build_fans(src.points[:500]))
     compile_time = time.perf_counter() - t0
     progress = _Progress("bunny fans", quiet)
     t0 = time.perf_counter()

@@ -209,8 +209,24 @@ MESH_PARAMS: tuple[Param, ...] = (
         range=(0.0, 1e6),
     ),
     Param(
+        "remove_self_intersections", "bool", True,
+        "remove the triangles that intersect others (an addition to the paper), close the "
+        "holes again and repeat (three rounds), then remove what still intersects: the mesh "
+        "has no self-intersection",
+    ),
+    Param(
+        "min_component", "int", 20,
+        "outliers (an addition to the paper): a piece of the mesh with fewer points and "
+        "fewer than a tenth of the largest piece's, with no other point within 5 local "
+        "spacings (a stray cluster), is removed; its points and the stray "
+        "points in no triangle and no fan of the mesh count as outliers (field array "
+        "mesh_outliers); 0: keep every piece",
+        range=(0, 2**62),
+    ),
+    Param(
         "self_intersections", "bool", True,
-        "count self-intersecting triangle pairs in the mesh statistics",
+        "count self-intersecting triangle pairs in the mesh statistics (0 without a test "
+        "when remove_self_intersections is on)",
     ),
 )
 

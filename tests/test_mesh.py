@@ -6,7 +6,7 @@ from conftest import fingerprint
 from scipy.spatial import cKDTree
 from shapes import cube_surface, distance_to_cube, flat_patch, sphere, torus
 
-from fancloud_vtk import FanCloud, build_fans, fan_cloud_to_mesh
+from fancloud_vtk import DoubtfulMeshWarning, FanCloud, build_fans, fan_cloud_to_mesh
 from fancloud_vtk.core.mesh_stats import boundary_loops
 
 
@@ -101,7 +101,9 @@ def test_bunny_mesh_is_closed_and_near_the_original(bunny):
 
 
 def test_rings_from_fans_as_in_the_paper_still_give_a_manifold():
-    mesh = fan_cloud_to_mesh(build_fans(sphere(5_000, seed=7)), rings="fans")
+    # the paper's fans agree poorly on random samples: the mesh keeps holes, and says so
+    with pytest.warns(DoubtfulMeshWarning):
+        mesh = fan_cloud_to_mesh(build_fans(sphere(5_000, seed=7)), rings="fans")
     s = mesh.stats
     assert s["non_manifold_edges"] == 0 and s["non_manifold_vertices"] == 0
     assert s["inconsistent_edges"] == 0

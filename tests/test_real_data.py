@@ -9,7 +9,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fancloud_vtk import build_fans, fan_cloud_to_mesh
+from fancloud_vtk import (
+    DoubtfulMeshWarning,
+    DuplicatePointsWarning,
+    build_fans,
+    fan_cloud_to_mesh,
+)
 
 
 def _jittered_grid(nx, ny, h, seed, jitter=0.25):
@@ -126,3 +131,81 @@ def test_reach_must_be_a_number():
     p = _jittered_grid(10, 10, 0.1, seed=0)
     with pytest.raises(TypeError, match="reach"):
         build_fans(p, reach="far")
+
+
+def _flat_cluster(p, h, seed):
+    """15 points of a small flat patch 30 spacings above the middle of p."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(-2 * h, 2 * h, size=(15, 2))
+    return p.mean(axis=0) + np.c_[xy, np.full(15, 30 * h)]
+
+
+@pytest.mark.parametrize("shape", ["flat", "blob"])
+def test_a_stray_cluster_is_judged_outliers_and_not_meshed(shape):
+    h = 0.01
+    p = _jittered_grid(60, 60, h, seed=6)
+    if shape == "flat":  # meshed on its own: a small piece far from the rest
+        cluster = _flat_cluster(p, h, seed=7)
+    else:  # a blob whose fans only hold each other: never meshed
+        rng = np.random.default_rng(7)
+        cluster = p.mean(axis=0) + [0.0, 0.0, 30 * h] + rng.normal(scale=0.7 * h, size=(15, 3))
+    pts = np.vstack([p, cluster])
+    mesh = fan_cloud_to_mesh(build_fans(pts))
+    ids = np.arange(len(p), len(pts))
+    assert mesh.stats["outliers"] == 15
+    assert np.array_equal(mesh.outliers, ids)
+    assert not np.isin(mesh.triangles, ids).any()
+    assert mesh.stats["unused_points"] == 15  # the outliers only
+
+
+def test_a_small_piece_near_the_surface_is_not_an_outlier():
+    """min_component=0 keeps every piece."""
+    h = 0.01
+    p = _jittered_grid(60, 60, h, seed=6)
+    mesh = fan_cloud_to_mesh(build_fans(np.vstack([p, _flat_cluster(p, h, 7)])),
+                             min_component=0)
+    assert mesh.stats["outliers"] == 0
+    assert np.isin(mesh.triangles, np.arange(len(p), len(p) + 15)).any()
+
+
+def test_the_mesh_has_no_self_intersection_where_the_growing_folds():
+    """pymeshlab's cow (low poly, thin legs): the growing leaves folds; none survives."""
+    from fancloud_vtk.core.mesh_stats import self_intersecting_pairs
+
+    pymeshlab = pytest.importorskip("pymeshlab")  # a dependency: present in CI
+    import os
+
+    from fancloud_vtk.io import read_point_cloud
+
+    path = os.path.join(os.path.dirname(pymeshlab.__file__), "tests", "sample_meshes", "cow.obj")
+    f = read_point_cloud(path)
+    used = np.unique(f.faces)
+    with pytest.warns(DuplicatePointsWarning):  # the cow has one point twice
+        fc = build_fans(f.points[used])
+    with pytest.warns(DoubtfulMeshWarning):
+        mesh = fan_cloud_to_mesh(fc)
+    assert mesh.stats["self_intersections_removed"] > 0
+    assert len(self_intersecting_pairs(mesh.points, mesh.triangles)) == 0
+    assert mesh.stats["non_manifold_edges"] == 0 and mesh.stats["non_manifold_vertices"] == 0
+    with pytest.warns(DoubtfulMeshWarning):
+        off = fan_cloud_to_mesh(fc, remove_self_intersections=False)
+    assert off.stats["self_intersections"] > 0
+
+
+def test_a_clean_sample_raises_no_warning():
+    rng = np.random.default_rng(9)
+    p = rng.normal(size=(4000, 3))
+    p /= np.linalg.norm(p, axis=1)[:, None]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mesh = fan_cloud_to_mesh(build_fans(p))
+    assert mesh.stats["outliers"] == 0 and len(mesh.outliers) == 0
+
+
+@pytest.mark.parametrize("bad", [-1, 2.5, True])
+def test_min_component_is_checked(bad):
+    fc = build_fans(_jittered_grid(10, 10, 0.1, seed=0))
+    with pytest.raises(ValueError, match="min_component"):
+        fan_cloud_to_mesh(fc, min_component=bad)

@@ -1,0 +1,45 @@
+"""Numba kernel: the connected pieces of a triangle mesh (union-find over its vertices)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def _find(parent, x):
+    root = x
+    while parent[root] != root:
+        root = parent[root]
+    while parent[x] != root:  # path compression
+        nxt = parent[x]
+        parent[x] = root
+        x = nxt
+    return root
+
+
+@njit(cache=True)
+def vertex_components(triangles, n):
+    """Label of each of the ``n`` vertices' piece (its smallest vertex); -1 if unused.
+
+    Two vertices are in one piece when a chain of triangles joins them.
+    """
+    parent = np.arange(n)
+    used = np.zeros(n, np.bool_)
+    for t in range(triangles.shape[0]):
+        a = _find(parent, triangles[t, 0])
+        used[triangles[t, 0]] = True
+        for j in range(1, 3):
+            used[triangles[t, j]] = True
+            b = _find(parent, triangles[t, j])
+            if a != b:
+                if a < b:
+                    parent[b] = a
+                else:
+                    parent[a] = b
+                    a = b
+    label = np.full(n, -1, np.int64)
+    for v in range(n):
+        if used[v]:
+            label[v] = _find(parent, v)
+    return label
