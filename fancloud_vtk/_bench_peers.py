@@ -82,6 +82,24 @@ def load_ours():
     return run
 
 
+def load_ours_pyvista():
+    """This project as a user calls it: ``pv.PolyData(points).fancloud.mesh()``, defaults.
+
+    PolyData in and out: the conversions, the fans, the mesh (self-intersections
+    removed), the statistics as field arrays.
+    """
+    import pyvista as pv
+
+    import fancloud_vtk.accessor  # noqa: F401  (the entry point, registered explicitly)
+
+    def run(points):
+        out = pv.PolyData(np.ascontiguousarray(points, dtype=np.float64)).fancloud.mesh()
+        faces = np.asarray(out.faces).reshape(-1, 4)[:, 1:]
+        return _result(np.asarray(out.points, dtype=np.float64), faces)
+
+    return run
+
+
 def load_meshlib():
     """MeshLib: ``triangulatePointCloud`` with its default parameters."""
     import meshlib.mrmeshnumpy as mn
@@ -174,7 +192,10 @@ _HERE = __name__
 
 METHODS = {m.name: m for m in (
     Method("ours", "fancloud_vtk (this project)", f"{_HERE}:load_ours",
-           f"build_fans(points, k={K}) + fan_cloud_to_mesh(fc, self_intersections=False)"),
+           f"build_fans(points, k={K}) + fan_cloud_to_mesh(fc, self_intersections=False) "
+           "(self-intersections removed, the default)"),
+    Method("ours-pyvista", "fancloud_vtk, PolyData in and out", f"{_HERE}:load_ours_pyvista",
+           "pv.PolyData(points).fancloud.mesh() with its defaults (the call a user makes)"),
     Method("meshlib", "MeshLib triangulatePointCloud", f"{_HERE}:load_meshlib",
            "mrmeshnumpy.pointCloudFromPoints(points) + mrmeshpy.triangulatePointCloud(cloud), "
            "default TriangulationParameters (numNeighbours 16, critAngle 90 deg, "
@@ -193,8 +214,9 @@ METHODS = {m.name: m for m in (
 )}
 
 #: What a missing method needs, for its "missing: ... not available" message.
-REQUIRES = {"ours": "fan_cloud_to_mesh", "meshlib": "meshlib (pip install meshlib)",
-            "ball-pivoting": "pymeshlab", "poisson": "pymeshlab", "vtk": "vtk"}
+REQUIRES = {"ours": "fan_cloud_to_mesh", "ours-pyvista": "pyvista",
+            "meshlib": "meshlib (pip install meshlib)", "ball-pivoting": "pymeshlab",
+            "poisson": "pymeshlab", "vtk": "vtk"}
 
 
 def method_for(spec: str) -> Method:
