@@ -1,9 +1,10 @@
-"""Numba kernel: the connected pieces of a triangle mesh (union-find over its vertices)."""
+"""Numba kernels over a whole triangle mesh: its connected pieces (union-find over its
+vertices) and its area."""
 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True)
@@ -43,3 +44,25 @@ def vertex_components(triangles, n):
         if used[v]:
             label[v] = _find(parent, v)
     return label
+
+
+@njit(cache=True, parallel=True)
+def mesh_area(points, triangles):
+    """The total area of the triangles."""
+    m = triangles.shape[0]
+    out = np.zeros(m)
+    for t in prange(m):
+        a = triangles[t, 0]
+        b = triangles[t, 1]
+        c = triangles[t, 2]
+        e1x = points[b, 0] - points[a, 0]
+        e1y = points[b, 1] - points[a, 1]
+        e1z = points[b, 2] - points[a, 2]
+        e2x = points[c, 0] - points[a, 0]
+        e2y = points[c, 1] - points[a, 1]
+        e2z = points[c, 2] - points[a, 2]
+        fx = e1y * e2z - e1z * e2y
+        fy = e1z * e2x - e1x * e2z
+        fz = e1x * e2y - e1y * e2x
+        out[t] = 0.5 * np.sqrt(fx * fx + fy * fy + fz * fz)
+    return out.sum()

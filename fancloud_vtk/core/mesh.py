@@ -589,7 +589,7 @@ def _warn_if_doubtful(fc: FanCloud, triangles, stats, holes=True) -> None:
     if stats["outliers"] > max(10, 0.01 * n):
         said.append(f"{stats['outliers']} points ({100 * stats['outliers'] / n:.1f}%) "
                     "were judged outliers (stray points or small isolated pieces)")
-    if holes and len(triangles):
+    if holes and stats["boundary_edges"] > max(10, 0.01 * stats["edges"]):
         e = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
         key, cnt = np.unique(e[:, 0] * n + e[:, 1], return_counts=True)
         bnd = key[cnt == 1]
@@ -645,8 +645,7 @@ def _remove_intersections(fc: FanCloud, triangles, refill, rounds=3):
 
 def _area(points, triangles) -> float:
     """The area of a triangle mesh."""
-    a, b, c = (points[triangles[:, i]] for i in range(3))
-    return 0.5 * float(np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+    return float(CK.mesh_area(points, np.ascontiguousarray(triangles, dtype=np.int64)))
 
 
 def _points_inside(fc: FanCloud, points, loop_verts, sizes, which) -> dict:
