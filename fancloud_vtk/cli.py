@@ -223,10 +223,11 @@ def _print_mesh_summary(mesh, elapsed, path=None, extra=()) -> None:
                        ("after_superfluous", "after superfluous removal"),
                        ("grown", "grown 2-manifold"), ("final", "final (holes closed)")):
         rows.append((label, f"{s[key]:,} ({s[key] / n:.3f} per point)"))
-    for key in ("holes_closed", "points_inserted", "boundary_edges", "holes",
-                "non_manifold_edges", "non_manifold_vertices", "inconsistent_edges",
-                "self_intersections", "unused_points", "euler_characteristic"):
-        rows.append((key.replace("_", " "), f"{s[key]:,}"))
+    for key in ("holes_closed", "points_inserted", "self_intersections_removed", "boundary_edges",
+                "holes", "non_manifold_edges", "non_manifold_vertices", "inconsistent_edges",
+                "self_intersections", "unused_points", "outliers", "euler_characteristic"):
+        if key in s:  # (a mesh read back from a file may lack the newer counts)
+            rows.append((key.replace("_", " "), f"{s[key]:,}"))
     rows.append(("time", f"{elapsed:.2f} s"))
     if path:
         rows.append(("written", str(path)))
