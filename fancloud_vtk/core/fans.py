@@ -109,7 +109,7 @@ def build_fans(
         gaps of range scans) nor reach out to stray
         clusters, and isolated clusters stay separate. ``0`` turns the
         limit off (the paper's rule). On random samples of smooth surfaces
-        no fan is left open by it (100k and 300k points on a sphere).
+        it leaves no fan open (``tests/test_real_data.py``).
     normals : array_like, optional
         ``(n, 3)`` normals given with the input: fan normals are oriented to
         agree with them.

@@ -152,7 +152,7 @@ def fan_cloud_to_mesh(
         again (``close_holes``), and repeat (three rounds); what still
         intersects then is removed and its hole left open. The result
         has no self-intersection. Costs one intersection test of the whole
-        mesh when there is none (about a fifth of the time).
+        mesh when there is none.
     min_component : int, default: 20
         Outliers (an addition to the paper): a piece of the mesh with fewer
         points than this and fewer than a tenth of the largest piece's, none
