@@ -554,7 +554,8 @@ def _outliers(fc: FanCloud, triangles, min_component, far=5.0):
         if len(cand):
             from scipy.spatial import cKDTree
 
-            kq = min(int(size[label[cand]].max()) + 1, n)
+            # past the piece's own points, a margin: the nearest others may be unused points
+            kq = min(int(size[label[cand]].max()) + 16, n)
             d, j = cKDTree(fc.points).query(fc.points[cand], k=kq)
             d = d.reshape(len(cand), -1)
             j = j.reshape(len(cand), -1)
