@@ -131,10 +131,16 @@ def _build(src, args):
     --keep-unreferenced), built with the fan options."""
     from fancloud_vtk.algorithms.convert import fans_of_points
 
+    return _convert_source(fans_of_points, src, args)
+
+
+def _convert_source(convert, src, args):
+    """``convert`` (a conversion of ``algorithms.convert``) of a file's arrays, with the
+    fan options, --keep-unreferenced and a progress bar."""
     progress = _Progress("fans", args.quiet)
     try:
-        return fans_of_points(*_source_arrays(src), _params(args, FAN_PARAMS), progress,
-                              keep_unreferenced=args.keep_unreferenced)
+        return convert(*_source_arrays(src), _params(args, FAN_PARAMS), progress,
+                       keep_unreferenced=args.keep_unreferenced)
     finally:
         progress.close()
 
@@ -271,13 +277,7 @@ def _load_any(path, args):
         data = read_vtp(path)
         if is_fancloud(data):
             return fancloud_from_vtk(data), KIND_FANS
-    src = read_point_cloud(path)
-    progress = _Progress("fans", args.quiet)
-    try:
-        return fan_cloud_of_arrays(*_source_arrays(src), _params(args, FAN_PARAMS), progress,
-                                   keep_unreferenced=args.keep_unreferenced)
-    finally:
-        progress.close()
+    return _convert_source(fan_cloud_of_arrays, read_point_cloud(path), args)
 
 
 def cmd_entropy(args) -> int:
