@@ -435,30 +435,43 @@ def test_blocks_never_merge_their_shared_points_before_uniting(blocked, terrain)
             assert len(np.unique(home[leaves])) == 1, "a block merged across its boundary"
 
 
-def test_blocks_agree_on_their_shared_points_for_random_cameras(blocked, terrain):
+def _uncovered(points, tri, q):
+    """Which of the (x, y) samples q no triangle covers, seen from above."""
+    a, b, c = (points[tri[:, j], :2] for j in range(3))
+    covered = np.zeros(len(q), bool)
+
+    def side(o, u):  # (u - o) x (q - o), samples by triangles
+        return ((u[None, :, 0] - o[None, :, 0]) * (q[:, None, 1] - o[None, :, 1])
+                - (u[None, :, 1] - o[None, :, 1]) * (q[:, None, 0] - o[None, :, 0]))
+
+    d = np.stack([side(a, b), side(b, c), side(c, a)])
+    covered = ~(((d < 0).any(axis=0)) & ((d > 0).any(axis=0)))
+    return ~covered.any(axis=1)
+
+
+def test_blocks_leave_no_crack_for_random_cameras(blocked, terrain):
+    """Seen from above, the front's fans cover the terrain across the block boundaries:
+    a crack (blocks disagreeing on a shared point) would leave a gap there."""
     vb, blocks = blocked
     vd = _fresh(vb)
-    count = np.zeros(terrain.n_points, int)
-    for b in blocks:
-        count[b] += 1
-    shared = np.flatnonzero(count >= 2)
     rng = np.random.default_rng(7)
+    size = terrain.points[:, 0].max()
+    # away from the outer border (a coarse front pulls in from it), across the block
+    # boundaries (every 21 spacings)
+    q = rng.uniform(0.75, size - 0.75, size=(2000, 2))
+    lines = SPACING * 21 * np.arange(1, 3)
+    near = (np.abs(q[:, :1] - lines).min(axis=1) < SPACING) | (
+        np.abs(q[:, 1:] - lines).min(axis=1) < SPACING)
+    assert near.sum() > 100
+    sizes = []
     for _ in range(6):
-        eye = (rng.uniform(0, 4), rng.uniform(-4, 0), rng.uniform(1, 4))
-        cam = (eye, (rng.uniform(1, 3), rng.uniform(1, 3), 0.0), (0, 0, 1), 50.0)
+        eye = (rng.uniform(1, 3), rng.uniform(1, 3), rng.uniform(8, 14))
+        cam = (eye, (2.0, 2.0, 0.0), (0.0, 1.0, 0.0), 70.0)
         front = vd.front_arrays(cam, rng.uniform(0.002, 0.05), 8.0)
-        ids = front.point_data["node_id"]
-        pos_in_front = {int(x): i for i, x in enumerate(ids)}
-        for b in blocks:
-            mine = np.isin(ids, b)
-            # seen from each block: a shared point is active (one point of the front for
-            # both blocks) or stands behind the same active ancestor
-            for s in shared[np.isin(shared, b)][:50]:
-                y = s
-                while y >= 0 and y not in pos_in_front:
-                    y = vd.parent[y]
-                if y == s:
-                    assert mine[pos_in_front[s]]
+        sizes.append(len(front.points))
+        assert not _uncovered(front.points, front.triangles, q).any()
+    # coarse and fine fronts, all far from the leaves (every block merged and united)
+    assert min(sizes) < 200 and max(sizes) > 500 and max(sizes) < terrain.n_points / 2
 
 
 def test_blocks_equal_the_plain_forest_where_no_boundary_is_involved(blocked, terrain):
