@@ -21,6 +21,7 @@ from .core.vdfc import (
     terrain_fan_cloud,
     terrain_path,
 )
+from .io import DroppedArrayWarning
 
 __version__ = "0.1.0"
 
@@ -51,6 +52,7 @@ def __dir__() -> list[str]:
 __all__ = [
     "Cancelled",
     "DoubtfulMeshWarning",
+    "DroppedArrayWarning",
     "DuplicatePointsWarning",
     "Entropy",
     "FanCloud",

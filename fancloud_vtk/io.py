@@ -1,9 +1,12 @@
 """Read point clouds and meshes from files into plain numpy arrays.
 
 Supported formats: PLY (ascii and binary, via ``plyfile``), Wavefront OBJ, VTK XML
-PolyData (``.vtp``) and UnstructuredGrid (``.vtu``), legacy VTK (``.vtk``), column text
-(``.xyz``, ``.pts``, ``.txt``) and numpy ``.npy``. VTK is imported lazily and only for the
-VTK formats; pyvista is never imported.
+PolyData (``.vtp``) and UnstructuredGrid (``.vtu``), legacy VTK (``.vtk``), STL (ascii and
+binary, ``.stl``; coincident corners merged into shared vertices), column text (``.xyz``,
+``.pts``, ``.txt``) and numpy ``.npy``. VTK is imported lazily and only for the VTK formats
+and STL; pyvista is never imported. VTK bit arrays are read as uint8 0/1; a per-point array
+that cannot be kept (e.g. a VTK string array) is dropped with a :class:`DroppedArrayWarning`
+naming it and the reason.
 
 Examples
 --------
@@ -22,7 +25,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SUPPORTED_FORMATS", "FileReadError", "PointCloudFile", "read_point_cloud"]
+__all__ = [
+    "SUPPORTED_FORMATS",
+    "DroppedArrayWarning",
+    "FileReadError",
+    "PointCloudFile",
+    "read_point_cloud",
+]
 
 #: Format names accepted by :func:`read_point_cloud` (also the recognised file extensions).
 SUPPORTED_FORMATS: tuple[str, ...] = (
@@ -31,6 +40,7 @@ SUPPORTED_FORMATS: tuple[str, ...] = (
     "vtp",
     "vtu",
     "vtk",
+    "stl",
     "xyz",
     "pts",
     "txt",
@@ -58,6 +68,22 @@ class FileReadError(ValueError):
 
     def __str__(self) -> str:
         return f"cannot read {self.path!r}: {self.reason}"
+
+
+class DroppedArrayWarning(UserWarning):
+    """A per-point array of the file was not read: the message names the file, the array
+    and the reason (e.g. a VTK string array, a length other than the number of points, a
+    PLY list property)."""
+
+
+def _warn_dropped(path: str, name: str, reason: str, stacklevel: int) -> None:
+    """Warn that point array ``name`` of ``path`` was dropped; ``stacklevel`` counts from
+    the caller of this function (as for :func:`warnings.warn`)."""
+    warnings.warn(
+        f"{path!r}: point array {name!r} dropped: {reason}",
+        DroppedArrayWarning,
+        stacklevel=stacklevel + 1,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -544,7 +570,11 @@ def _read_ply(path: str) -> PointCloudFile:
             continue
         field = vdata.dtype.fields[name][0]
         if field.shape != () or field.kind not in "biuf":
-            continue  # list properties on vertices are not per-point scalars
+            # list properties on vertices are not per-point scalars
+            kind = "a list property" if field.kind == "O" or field.shape else f"of type {field}"
+            _warn_dropped(path, name, f"{kind}, not a numeric per-point value",
+                          stacklevel=3)  # _read_ply <- read_point_cloud <- caller
+            continue
         point_data[name] = np.array(vdata[name])
     return _finish(path, points, point_data, faces)
 
@@ -760,10 +790,16 @@ def _read_vtk_format(path: str, fmt: str) -> PointCloudFile:
         vtkLogger,
         vtkOutputWindow,
         vtkStringOutputWindow,
+        vtkUnsignedCharArray,
     )
     from vtkmodules.vtkCommonDataModel import vtkPointSet, vtkPolyData
 
-    if fmt == "vtp":
+    if fmt == "stl":
+        from vtkmodules.vtkIOGeometry import vtkSTLReader
+
+        reader = vtkSTLReader()
+        reader.MergingOn()  # STL repeats each triangle's corners: share them
+    elif fmt == "vtp":
         from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
 
         reader = vtkXMLPolyDataReader()
@@ -837,15 +873,33 @@ def _read_vtk_format(path: str, fmt: str) -> PointCloudFile:
 
     point_data: dict[str, np.ndarray] = {}
     pd = out.GetPointData()
+    level = 4  # warn at: _read_vtk_format <- a _READERS lambda <- read_point_cloud <- caller
     for i in range(pd.GetNumberOfArrays()):
-        arr = pd.GetArray(i)  # None for string / non-numeric arrays
-        if arr is None or arr.GetNumberOfTuples() != n:
+        abstract = pd.GetAbstractArray(i)
+        if abstract is None:
             continue
+        name = abstract.GetName() or f"array_{i}"
+        kind = abstract.GetClassName()
+        arr = pd.GetArray(i)  # None for string / non-numeric arrays
+        if arr is None:
+            _warn_dropped(path, name, f"a {kind}, not numeric", level)
+            continue
+        if arr.GetNumberOfTuples() != n:
+            reason = f"it has {arr.GetNumberOfTuples()} tuples but the file has {n} points"
+            _warn_dropped(path, name, reason, level)
+            continue
+        if arr.IsA("vtkBitArray"):
+            # vtk_to_numpy converts none (older VTK) or only 1-component ones: 0/1 as uint8
+            plain = vtkUnsignedCharArray()
+            plain.DeepCopy(arr)
+            arr = plain
         try:
             values = np.array(vtk_to_numpy(arr))
-        except Exception:  # e.g. vtkBitArray
+        except Exception as exc:  # an array type numpy_support does not know
+            reason = f"a {kind} cannot be converted to a numpy array ({type(exc).__name__}: {exc})"
+            _warn_dropped(path, name, reason, level)
             continue
-        point_data[arr.GetName() or f"array_{i}"] = values
+        point_data[name] = values
     normals = pd.GetNormals()
     if normals is not None and normals.GetNumberOfComponents() == 3:
         point_data["Normals"] = np.array(vtk_to_numpy(normals), dtype=np.float64)
@@ -976,6 +1030,7 @@ _READERS: dict[str, Callable[[str], PointCloudFile]] = {
     "vtp": lambda p: _read_vtk_format(p, "vtp"),
     "vtu": lambda p: _read_vtk_format(p, "vtu"),
     "vtk": lambda p: _read_vtk_format(p, "vtk"),
+    "stl": lambda p: _read_vtk_format(p, "stl"),
     "xyz": _read_text,
     "pts": _read_text,
     "txt": _read_text,
@@ -1004,6 +1059,13 @@ def read_point_cloud(path: str | os.PathLike[str], *, format: str | None = None)
     FileReadError
         If the file is missing, a directory, empty, of an unknown format, or cannot be
         parsed; the message names the path and the reason.
+
+    Warns
+    -----
+    DroppedArrayWarning
+        For each per-point array of the file that is not returned (a VTK string array, an
+        array whose length is not the number of points, a PLY list property), naming the
+        array and the reason. (VTK bit arrays are returned as uint8 0/1.)
     """
     path = os.fspath(path)
     if isinstance(path, bytes):

@@ -15,6 +15,7 @@ from plyfile import PlyData, PlyElement
 
 from fancloud_vtk.io import (
     SUPPORTED_FORMATS,
+    DroppedArrayWarning,
     FileReadError,
     PointCloudFile,
     read_point_cloud,
@@ -822,6 +823,283 @@ def test_vtk_file_without_points_is_an_error(tmp_path):
     # VTK 9.2's reader itself reports "No Points element ..."; later ones read it empty
     with pytest.raises(FileReadError, match="(?i)no points"):
         read_point_cloud(path)
+
+
+# ----------------------------------------------------------------------------- STL
+
+
+def _write_stl_with_vtk(path, poly, binary):
+    from vtkmodules.vtkIOGeometry import vtkSTLWriter
+
+    writer = vtkSTLWriter()
+    writer.SetFileName(str(path))
+    writer.SetInputData(poly)
+    if binary:
+        writer.SetFileTypeToBinary()
+    else:
+        writer.SetFileTypeToASCII()
+    assert writer.Write() == 1
+    return path
+
+
+def _stl_ascii(triangles) -> bytes:
+    """An ASCII STL of ``triangles`` (``(t, 3, 3)`` corner coordinates), written by hand."""
+    lines = ["solid test"]
+    for tri in triangles:
+        lines += ["  facet normal 0 0 0", "    outer loop"]
+        lines += [f"      vertex {x:.17g} {y:.17g} {z:.17g}" for x, y, z in tri]
+        lines += ["    endloop", "  endfacet"]
+    return ("\n".join([*lines, "endsolid test", ""])).encode("ascii")
+
+
+def _stl_binary(triangles) -> bytes:
+    """A binary STL of ``triangles``: 80-byte header, uint32 count, 50 bytes per facet."""
+    facets = np.zeros(len(triangles), dtype=[("normal", "<f4", 3), ("corners", "<f4", (3, 3)),
+                                             ("attribute", "<u2")])
+    facets["corners"] = triangles
+    header = b"binary STL written by test_io".ljust(80, b" ")
+    return header + np.uint32(len(triangles)).astype("<u4").tobytes() + facets.tobytes()
+
+
+#: two triangles of the unit square (sharing the edge 1-2) and one apart from them
+STL_POINTS = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [5, 5, 5], [6, 5, 5],
+                       [5, 6, 5]], dtype=float)
+STL_TRIANGLES = np.array([[0, 1, 2], [2, 1, 3], [4, 5, 6]])
+
+
+@pytest.mark.parametrize("binary", [False, True], ids=["ascii", "binary"])
+def test_stl_written_by_hand_is_an_indexed_triangle_mesh(tmp_path, binary):
+    corners = STL_POINTS[STL_TRIANGLES]  # 9 corners, 7 distinct
+    path = tmp_path / "hand.stl"
+    path.write_bytes(_stl_binary(corners) if binary else _stl_ascii(corners))
+    cloud = read_checked(path)
+    assert cloud.points.shape == (7, 3) and cloud.faces.shape == (3, 3)
+    # the same triangles, corners in the file's order (so the same orientation)
+    np.testing.assert_array_equal(cloud.points[cloud.faces], corners)
+    assert len(np.unique(cloud.points, axis=0)) == 7
+    assert cloud.point_data == {}
+
+
+@pytest.mark.parametrize("binary", [False, True], ids=["ascii", "binary"])
+def test_stl_written_by_vtk_reads_back_shared_vertices(tmp_path, binary):
+    from vtkmodules.vtkFiltersSources import vtkSphereSource
+
+    source = vtkSphereSource()
+    source.SetThetaResolution(12)
+    source.SetPhiResolution(9)
+    source.Update()
+    sphere = source.GetOutput()
+    path = _write_stl_with_vtk(tmp_path / "sphere.stl", sphere, binary)
+    assert path.read_bytes().startswith(b"solid") != binary
+    cloud = read_checked(path)
+    n_points, n_triangles = sphere.GetNumberOfPoints(), sphere.GetNumberOfPolys()
+    assert (n_points, n_triangles) == (2 + 12 * 7, 2 * 12 * 7)
+    assert cloud.points.shape == (n_points, 3)
+    assert cloud.faces.shape == (n_triangles, 3)
+    # every vertex is used, each triangle has three distinct ones, and (a closed
+    # surface) every edge is shared by exactly two triangles: the corners were merged
+    assert set(np.unique(cloud.faces)) == set(range(n_points))
+    assert np.all(np.diff(np.sort(cloud.faces, axis=1), axis=1) > 0)
+    edges = np.sort(cloud.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert np.all(counts == 2)
+    np.testing.assert_allclose(np.linalg.norm(cloud.points, axis=1), 0.5, rtol=1e-6)
+
+
+def test_stl_by_format_override(tmp_path):
+    path = tmp_path / "mesh.dat"
+    path.write_bytes(_stl_ascii(STL_POINTS[STL_TRIANGLES]))
+    cloud = read_checked(path, format="STL")
+    assert cloud.points.shape == (7, 3) and cloud.faces.shape == (3, 3)
+
+
+@pytest.mark.parametrize(
+    ("content", "reason"),
+    [
+        (b"this is not an STL file\x00\x01\x02" * 3, r"VTK vtkSTLReader failed: .+"),
+        (b"solid x\nthis is not an STL file\n", r"VTK vtkSTLReader failed: .+"),
+        (b"solid x\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 zz\n",
+         r"VTK vtkSTLReader failed: .+"),
+        (_stl_binary(STL_POINTS[STL_TRIANGLES])[:-30], r"VTK vtkSTLReader failed: .+"),
+        (b"solid empty\nendsolid empty\n", "the file contains no points"),
+        (_stl_binary(np.zeros((0, 3, 3))), "the file contains no points"),
+    ],
+    ids=["garbage", "bad-ascii", "bad-vertex", "truncated-binary", "no-facets-ascii",
+         "no-facets-binary"],
+)
+def test_bad_or_empty_stl_is_an_error_and_silent(tmp_path, capfd, content, reason):
+    from vtkmodules.vtkCommonCore import vtkLogger, vtkOutputWindow
+
+    window = vtkOutputWindow.GetInstance()
+    verbosity = vtkLogger.GetCurrentVerbosityCutoff()
+    path = tmp_path / "bad.stl"
+    path.write_bytes(content)
+    with pytest.raises(FileReadError, match=rf"bad\.stl.*{reason}") as info:
+        read_point_cloud(path)
+    assert "0x" not in str(info.value)
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
+    assert vtkOutputWindow.GetInstance() is window
+    assert vtkLogger.GetCurrentVerbosityCutoff() == verbosity
+
+
+def test_stl_mesh_through_the_command(tmp_path, capsys):
+    from vtkmodules.vtkFiltersSources import vtkSphereSource
+
+    from fancloud_vtk import FanCloud
+    from fancloud_vtk.cli import main
+
+    source = vtkSphereSource()
+    source.SetThetaResolution(24)
+    source.SetPhiResolution(16)
+    source.Update()
+    src = _write_stl_with_vtk(tmp_path / "sphere.stl", source.GetOutput(), binary=True)
+    out = tmp_path / "fans.vtp"
+    assert main(["fans", str(src), "-o", str(out), "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
+    fc = FanCloud.load(out)
+    np.testing.assert_array_equal(fc.points, read_checked(src).points)
+
+
+# ----------------------------------------------------------------------------- dropped arrays
+
+
+def _poly_with_point_arrays(*arrays):
+    """:func:`_vtk_polydata` (arrays 'temperature', 'pairs', normals) with ``arrays`` added."""
+    poly, pts = _vtk_polydata()
+    for arr in arrays:
+        poly.GetPointData().AddArray(arr)
+    return poly, pts
+
+
+def _bit_array(name, bits, components=1):
+    from vtkmodules.vtkCommonCore import vtkBitArray
+
+    arr = vtkBitArray()
+    arr.SetName(name)
+    arr.SetNumberOfComponents(components)
+    arr.SetNumberOfTuples(len(bits) // components)
+    for i, b in enumerate(bits):
+        arr.SetValue(i, int(b))
+    return arr
+
+
+def _string_array(name, values):
+    from vtkmodules.vtkCommonCore import vtkStringArray
+
+    arr = vtkStringArray()
+    arr.SetName(name)
+    for v in values:
+        arr.InsertNextValue(v)
+    return arr
+
+
+def _write_vtk(poly, path):
+    from vtkmodules.vtkIOLegacy import vtkPolyDataWriter
+    from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
+
+    writer = vtkXMLPolyDataWriter() if path.suffix == ".vtp" else vtkPolyDataWriter()
+    writer.SetFileName(str(path))
+    writer.SetInputData(poly)
+    assert writer.Write() == 1
+    return path
+
+
+BITS = np.array([1, 0, 0, 1, 1], dtype=np.uint8)
+BITS3 = (np.arange(15) % 4 == 0).astype(np.uint8).reshape(5, 3)
+
+
+@pytest.mark.parametrize("ext", ["vtp", "vtk"])
+def test_vtk_bit_arrays_are_read_as_uint8(tmp_path, ext):
+    # no warning: pytest turns any into an error
+    poly, pts = _poly_with_point_arrays(_bit_array("flags", BITS),
+                                           _bit_array("flags3", BITS3.ravel(), 3))
+    cloud = read_checked(_write_vtk(poly, tmp_path / f"bits.{ext}"))
+    np.testing.assert_array_equal(cloud.points, pts)
+    assert cloud.point_data["flags"].dtype == np.uint8
+    np.testing.assert_array_equal(cloud.point_data["flags"], BITS)
+    assert cloud.point_data["flags3"].dtype == np.uint8
+    np.testing.assert_array_equal(cloud.point_data["flags3"], BITS3)
+
+
+@pytest.mark.parametrize("ext", ["vtp", "vtk"])
+def test_vtk_string_point_array_is_dropped_with_a_warning(tmp_path, ext):
+    poly, pts = _poly_with_point_arrays(_bit_array("flags", BITS),
+                                           _string_array("labels", "abcde"))
+    path = _write_vtk(poly, tmp_path / f"strings.{ext}")
+    with pytest.warns(DroppedArrayWarning) as record:
+        cloud = read_checked(path)
+    assert len(record) == 1
+    message = str(record[0].message)
+    assert f"strings.{ext}" in message
+    assert "point array 'labels' dropped: a vtkStringArray, not numeric" in message
+    assert record[0].filename == __file__  # reported where read_point_cloud was called
+    assert "labels" not in cloud.point_data
+    np.testing.assert_array_equal(cloud.point_data["flags"], BITS)
+    np.testing.assert_allclose(cloud.point_data["temperature"], np.linspace(0, 1, 5))
+    np.testing.assert_array_equal(cloud.points, pts)
+
+
+def test_legacy_vtk_array_of_another_length_is_dropped_with_a_warning(tmp_path):
+    from vtkmodules.util.numpy_support import numpy_to_vtk
+
+    short = numpy_to_vtk(np.arange(3.0), deep=True)
+    short.SetName("short")
+    poly, _ = _poly_with_point_arrays(short)
+    path = _write_vtk(poly, tmp_path / "short.vtk")
+    with pytest.warns(DroppedArrayWarning,
+                      match=r"'short' dropped: it has 3 tuples but the file has 5 points"):
+        cloud = read_checked(path)
+    assert "short" not in cloud.point_data and "temperature" in cloud.point_data
+
+
+def test_vtk_array_numpy_cannot_take_is_dropped_with_a_warning(tmp_path, monkeypatch):
+    from vtkmodules.util import numpy_support
+
+    path = _write_vtk(_vtk_polydata()[0], tmp_path / "mesh.vtp")
+    convert = numpy_support.vtk_to_numpy
+
+    def refuse_temperature(arr):
+        if arr.GetName() == "temperature":
+            raise TypeError("no numpy type for this array")
+        return convert(arr)
+
+    monkeypatch.setattr(numpy_support, "vtk_to_numpy", refuse_temperature)
+    with pytest.warns(DroppedArrayWarning, match=r"'temperature' dropped: a vtk\w*Float\w*Array "
+                      r"cannot be converted .*TypeError: no numpy type for this array"):
+        cloud = read_checked(path)
+    assert "temperature" not in cloud.point_data and "pairs" in cloud.point_data
+
+
+@pytest.mark.parametrize("text", [False, True], ids=["binary", "ascii"])
+def test_ply_vertex_list_property_is_dropped_with_a_warning(tmp_path, text):
+    v = np.empty(4, dtype=[("x", "f4"), ("y", "f4"), ("z", "f4"), ("quality", "f4"),
+                           ("neighbours", "O")])
+    for i, c in enumerate("xyz"):
+        v[c] = TETRA[:, i]
+    v["quality"] = [1, 2, 3, 4]
+    for i in range(4):
+        v["neighbours"][i] = np.array([j for j in range(4) if j != i], dtype=np.int32)
+    element = PlyElement.describe(v, "vertex", len_types={"neighbours": "u1"},
+                                  val_types={"neighbours": "i4"})
+    path = tmp_path / "lists.ply"
+    PlyData([element], text=text).write(str(path))
+    with pytest.warns(DroppedArrayWarning,
+                      match=r"lists\.ply.*'neighbours' dropped: a list property") as record:
+        cloud = read_checked(path)
+    assert len(record) == 1 and record[0].filename == __file__
+    assert "neighbours" not in cloud.point_data
+    np.testing.assert_array_equal(cloud.point_data["quality"], [1, 2, 3, 4])
+
+
+def test_dropped_array_warning_is_public():
+    import fancloud_vtk
+    import fancloud_vtk.io
+
+    assert fancloud_vtk.DroppedArrayWarning is DroppedArrayWarning
+    assert fancloud_vtk.io.DroppedArrayWarning is DroppedArrayWarning
+    assert issubclass(DroppedArrayWarning, UserWarning)
+    assert "DroppedArrayWarning" in fancloud_vtk.__all__
 
 
 # ----------------------------------------------------------------------------- generic
