@@ -18,21 +18,32 @@
     The view-dependent fan cloud (paper section 8): its front for a camera, or
     a fly-through with per-frame front sizes and update times.
 ``fancloud demo [--out DIR]``
-    The main job on built-in data (the Stanford bunny shipped with pymeshlab).
+    The main job on built-in data: the fan cloud of the Stanford bunny shipped
+    with pymeshlab, its triangle mesh, its reductions, selective refinement and
+    refinement; then the view-dependent fan cloud of matplotlib's Jacksboro
+    fault DEM (the terrain panel). Everything written and rendered offscreen
+    to PNG in DIR.
 ``fancloud bench fans [...]``
     The benchmark of fan construction (see ``fancloud bench fans --help``).
+``fancloud --version``
+    The version.
+
+An option's value may start with ``-`` (``--region-center -0.1,0.3,0.7``,
+``--camera "-3,0,0;0,0,0;0,0,1;40"``): see :func:`_join_negative_values`.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 import time
 import warnings
 
 import numpy as np
 
+from fancloud_vtk import __version__
 from fancloud_vtk.params import (
     ENTROPY_PARAMS,
     FAN_PARAMS,
@@ -100,22 +111,65 @@ def _params(args, table) -> dict:
 
 
 class _Progress:
-    """A tqdm bar driven by the core's progress callback (hidden when not a terminal)."""
+    """A tqdm bar driven by the core's progress callback (hidden when not a terminal).
+
+    The core may call back thousands of times a second: the bar is redrawn only when the
+    shown percentage or message changes, and at most once every ``interval`` seconds; a
+    change held back is drawn by the next call after the interval, or by :meth:`close`.
+    """
+
+    #: the shortest time between two redraws (seconds)
+    interval = 0.1
+    #: the clock of the throttle (a test may set its own)
+    clock = staticmethod(time.monotonic)
 
     def __init__(self, desc: str, quiet: bool):
         from tqdm import tqdm
 
         self.bar = tqdm(total=100, desc=desc, disable=True if quiet else None, leave=False,
                         bar_format="{l_bar}{bar}| {elapsed}")
+        self._shown = None  # (percent, message) drawn last
+        self._pending = None  # a newer state not drawn yet
+        self._drawn_at = -float("inf")
 
     def __call__(self, fraction: float, message: str) -> bool:
-        self.bar.set_description(message)
-        self.bar.n = round(100 * fraction)
-        self.bar.refresh()
+        if self.bar.disable:
+            return False
+        state = (round(100 * fraction), message)
+        if state == self._shown:
+            self._pending = None
+            return False
+        now = self.clock()
+        if now - self._drawn_at < self.interval:
+            self._pending = state
+        else:
+            self._draw(state, now)
         return False
 
+    def _draw(self, state, now: float) -> None:
+        percent, message = state
+        if self._shown is None or message != self._shown[1]:
+            self.bar.set_description(message, refresh=False)
+        self.bar.n = percent
+        self.bar.refresh()
+        self._shown, self._pending, self._drawn_at = state, None, now
+
     def close(self):
+        if self._pending is not None:  # the final state, even if drawn just before
+            self._draw(self._pending, self.clock())
         self.bar.close()
+
+
+def _quiet_offscreen_rendering() -> None:
+    """Keep VTK's log on stderr to errors before rendering offscreen.
+
+    Without a display VTK logs warnings such as ``vtkXOpenGLRenderWindow ... WARN| bad X
+    server connection. DISPLAY=`` and renders offscreen all the same; a command prints its
+    own messages only. (For the command-line process: nothing is restored.)
+    """
+    from vtkmodules.vtkCommonCore import vtkLogger
+
+    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
 
 
 def _source_arrays(src):
@@ -523,6 +577,7 @@ def cmd_vdfc(args) -> int:
             import shutil
             import tempfile
 
+            _quiet_offscreen_rendering()
             with tempfile.TemporaryDirectory() as tmp:
                 row = flythrough(vd, [camera], e_max, tmp, d_max=d_max, size=(w, h),
                                  superfluous=values["superfluous"])[0]
@@ -537,6 +592,7 @@ def cmd_vdfc(args) -> int:
         from fancloud_vtk.core.vdfc import terrain_path
 
         cams = terrain_path(vd.bounds(), args.frames, aspect=w / h)
+        _quiet_offscreen_rendering()
         progress = _Progress("fly-through", args.quiet)
         try:
             frames = flythrough(vd, cams, e_max, args.flythrough, d_max=d_max, size=(w, h),
@@ -562,6 +618,7 @@ def cmd_vdfc(args) -> int:
 def cmd_demo(args) -> int:
     from fancloud_vtk.demo import run_demo
 
+    _quiet_offscreen_rendering()
     run_demo(args.out, quiet=args.quiet)
     return 0
 
@@ -576,10 +633,11 @@ def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="fancloud", description="Fan clouds: one triangle fan per point (VTK / PyVista)."
     )
+    parser.add_argument("--version", action="version", version=f"fancloud {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("fans", help="build the fan cloud of a point cloud or mesh file")
-    p.add_argument("input", help="input file: .ply .obj .vtp .vtk .vtu .xyz .pts .txt .npy")
+    p.add_argument("input", help="input file: .ply .obj .stl .vtp .vtk .vtu .xyz .pts .txt .npy")
     p.add_argument("-o", "--output", required=True, help="output fan cloud (.vtp)")
     _add_params(p, FAN_PARAMS + INPUT_PARAMS)
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
@@ -658,7 +716,15 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_vdfc)
 
-    p = sub.add_parser("demo", help="fan cloud and mesh of the bunny: built, saved, rendered")
+    p = sub.add_parser(
+        "demo", help="the bunny (fans, mesh, reduction, refinement) and a terrain "
+                     "(view-dependent fan cloud): built, saved, rendered",
+        description="The main job on built-in data, written and rendered offscreen to PNG in "
+                    "the output folder: the fan cloud of the Stanford bunny (pymeshlab's), its "
+                    "triangle mesh, its reductions by entropy (Figure 9), the selective "
+                    "refinement of its head (Figure 11) and its refinement x4 (section 7); "
+                    "then the terrain panel: the view-dependent fan cloud of matplotlib's "
+                    "Jacksboro fault DEM, its front for one viewpoint (Figures 15 and 16).")
     p.add_argument("--out", default="fancloud_demo", help="output folder (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_demo)
@@ -670,6 +736,55 @@ def make_parser() -> argparse.ArgumentParser:
     return parser
 
 
+#: a value argparse would take for an option: a negative number or a list of them
+#: ("-0.1,0.3,0.7", "-3,0,0;0,0,0;0,0,1;40", "-.5")
+_NEGATIVE_VALUE = re.compile(r"-[0-9.]")
+
+
+def _value_options(parser: argparse.ArgumentParser) -> dict[str, argparse.Action]:
+    """The option strings of ``parser`` that take exactly one value."""
+    return {flag: action for action in parser._actions if action.option_strings
+            and action.nargs is None for flag in action.option_strings}
+
+
+def _join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
+    """``argv`` with every value that starts like a negative number joined to its option.
+
+    argparse reads ``--region-center -0.1,0.3,0.7`` as two options (and fails with
+    "expected one argument"): such a value is passed as ``--region-center=-0.1,0.3,0.7``
+    (``-o-1.png`` for a short option). Only options of the subcommand that take a value
+    are joined (abbreviations too, when they name one option); nothing after ``--``.
+    """
+    sub = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
+    command = next((i for i, arg in enumerate(argv) if not arg.startswith("-")), None)
+    if sub is None or command is None or argv[command] not in sub.choices:
+        return argv
+    subparser = sub.choices[argv[command]]
+    takes_value = _value_options(subparser)
+    every_flag = [f for a in subparser._actions for f in a.option_strings]
+    out, i = argv[:command + 1], command + 1
+    while i < len(argv):
+        arg = argv[i]
+        if arg == "--":
+            out.extend(argv[i:])
+            break
+        action = takes_value.get(arg)
+        if action is None and arg.startswith("--") and "=" not in arg:
+            named = {takes_value.get(f) for f in every_flag if f.startswith(arg)}
+            action = named.pop() if len(named) == 1 else None
+        if action is not None and i + 1 < len(argv):
+            value = argv[i + 1]
+            if _NEGATIVE_VALUE.match(value):
+                out.append(f"{arg}={value}" if arg.startswith("--") else arg + value)
+            else:
+                out += [arg, value]  # the value is the option's, whatever it looks like
+            i += 2
+            continue
+        out.append(arg)
+        i += 1
+    return out
+
+
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = make_parser()
@@ -677,7 +792,7 @@ def main(argv=None) -> int:
         # everything after "bench" (--help too) belongs to the benchmark's parser
         args = argparse.Namespace(command="bench", func=cmd_bench, bench_args=argv[1:])
     else:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(_join_negative_values(parser, argv))
 
     def show_warning(message, category, filename, lineno, file=None, line=None):
         # one line naming the problem, not the source line that warned
