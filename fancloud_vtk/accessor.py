@@ -17,8 +17,9 @@ from fancloud_vtk.algorithms.base import run
 from fancloud_vtk.algorithms.convert import (
     add_unreferenced_field,
     fancloud_from_vtk,
-    input_fan_cloud,
     is_fancloud,
+    source_of,
+    to_vtk,
 )
 from fancloud_vtk.algorithms.entropy import FanCloudEntropyFilter
 from fancloud_vtk.algorithms.fans import FanCloudFilter
@@ -31,27 +32,9 @@ from fancloud_vtk.algorithms.vdfc import (
     e_max_of,
     follow_camera,
 )
+from fancloud_vtk.core import verbs
 from fancloud_vtk.core.vdfc import ViewDependentFanCloud
-from fancloud_vtk.params import (
-    ENTROPY_PARAMS,
-    FAN_PARAMS,
-    INPUT_PARAMS,
-    MESH_PARAMS,
-    REDUCE_PARAMS,
-    REFINE_PARAMS,
-    SELECTIVE_PARAMS,
-    VDFC_PARAMS,
-    Param,
-    check_params,
-)
-
-
-def _one_amount(params: dict, other: str) -> None:
-    """Refuse ``n_points`` together with ``keep``/``factor``: the filters would take
-    ``n_points`` and drop the other silently."""
-    if params.get("n_points") and other in params:
-        raise ValueError(f"give n_points or {other}, not both (got n_points="
-                         f"{params['n_points']!r} and {other}={params[other]!r})")
+from fancloud_vtk.params import VERB_PARAMS, Param
 
 
 def _point_set(dataset):
@@ -100,15 +83,15 @@ class PyVistaViewDependentFanCloud(ViewDependentFanCloud):
         """The active front for ``camera`` as a new ``pyvista.PolyData``.
 
         ``e_max``, ``d_max``, ``aspect``, ``superfluous``: as for
-        :meth:`fancloud_vtk.ViewDependentFanCloud.front`; by default the
+        :meth:`fancloud_vtk.ViewDependentFanCloud.front_arrays`; by default the
         values given to ``vdfc()`` (``e_max`` 0: 0.1% of the diagonal).
         """
         e = e_max if e_max is not None else e_max_of(self, self.values["e_max"])
         d = d_max if d_max is not None else (self.values["d_max"] or None)
         a = aspect if aspect is not None else (self.values["aspect"] or None)
         s = superfluous if superfluous is not None else self.values["superfluous"]
-        out = pv.wrap(super().front(camera, e, d, aspect=a, incremental=incremental,
-                                    superfluous=s))
+        out = pv.wrap(to_vtk(self.front_arrays(camera, e, d, aspect=a, incremental=incremental,
+                                               superfluous=s)))
         add_unreferenced_field(out, getattr(self, "unreferenced_dropped", None))
         return out
 
@@ -172,7 +155,7 @@ class FanCloudAccessor:
         """The dataset's fan cloud as a :class:`fancloud_vtk.FanCloud` (arrays copied)."""
         return fancloud_from_vtk(self._dataset)
 
-    @_document(FAN_PARAMS + INPUT_PARAMS)
+    @_document(VERB_PARAMS["fans"])
     def fans(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
         """Build the fan cloud of the dataset's points (paper section 3).
 
@@ -216,10 +199,10 @@ class FanCloudAccessor:
         0
         >>> fans.plot(smooth_shading=True)  # doctest: +SKIP
         """
-        values = check_params(FAN_PARAMS + INPUT_PARAMS, params)
+        values = verbs.check_values("fans", params)
         return _run(FanCloudFilter(**values), self._dataset, progress_bar, "Building fans")
 
-    @_document(FAN_PARAMS + INPUT_PARAMS + MESH_PARAMS)
+    @_document(VERB_PARAMS["mesh"])
     def mesh(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
         """Triangle mesh from the fan cloud (paper section 4): a closed 2-manifold where it can be.
 
@@ -262,10 +245,10 @@ class FanCloudAccessor:
         (True, 0)
         >>> mesh.plot(smooth_shading=True)  # doctest: +SKIP
         """
-        values = check_params(FAN_PARAMS + INPUT_PARAMS + MESH_PARAMS, params)
+        values = verbs.check_values("mesh", params)
         return _run(FanCloudMeshFilter(**values), self._dataset, progress_bar, "Meshing")
 
-    @_document(FAN_PARAMS + INPUT_PARAMS + ENTROPY_PARAMS)
+    @_document(VERB_PARAMS["entropy"])
     def entropy(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
         """The entropy of every point (paper section 5) as point arrays.
 
@@ -301,10 +284,10 @@ class FanCloudAccessor:
         ('triangle mesh', True)
         >>> ent.plot(scalars="entropy_curv", log_scale=True)  # doctest: +SKIP
         """
-        values = check_params(FAN_PARAMS + INPUT_PARAMS + ENTROPY_PARAMS, params)
+        values = verbs.check_values("entropy", params)
         return _run(FanCloudEntropyFilter(**values), self._dataset, progress_bar, "Entropy")
 
-    @_document(FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS)
+    @_document(VERB_PARAMS["reduce"])
     def reduce(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
         """Reduce to an exact number of points by entropy (paper section 5).
 
@@ -348,11 +331,11 @@ class FanCloudAccessor:
         True
         >>> small.plot(smooth_shading=True)  # doctest: +SKIP
         """
-        _one_amount(params, "keep")
-        values = check_params(FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS, params)
+        verbs.check_amount("reduce", params)
+        values = verbs.check_values("reduce", params)
         return _run(FanCloudReduceFilter(**values), self._dataset, progress_bar, "Reducing")
 
-    @_document(FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS)
+    @_document(VERB_PARAMS["selective"])
     def selective(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
         """Reduce, smooth the coarse level, refine only a region of interest (Figure 11).
 
@@ -400,13 +383,12 @@ class FanCloudAccessor:
         True
         >>> head.plot(smooth_shading=True)  # doctest: +SKIP
         """
-        _one_amount(params, "keep")
-        values = check_params(FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS,
-                              params)
+        verbs.check_amount("selective", params)
+        values = verbs.check_values("selective", params)
         return _run(FanCloudSelectiveRefineFilter(**values), self._dataset, progress_bar,
                     "Refining a region")
 
-    @_document(FAN_PARAMS + INPUT_PARAMS + REFINE_PARAMS)
+    @_document(VERB_PARAMS["refine"])
     def refine(self, *, progress_bar: bool = False, **params) -> pv.PolyData:
         """Refine beyond the input resolution by entropy (paper section 7).
 
@@ -454,11 +436,11 @@ class FanCloudAccessor:
         True
         >>> fine.plot(smooth_shading=True)  # doctest: +SKIP
         """
-        _one_amount(params, "factor")
-        values = check_params(FAN_PARAMS + INPUT_PARAMS + REFINE_PARAMS, params)
+        verbs.check_amount("refine", params)
+        values = verbs.check_values("refine", params)
         return _run(FanCloudRefineFilter(**values), self._dataset, progress_bar, "Refining")
 
-    @_document(FAN_PARAMS + INPUT_PARAMS + VDFC_PARAMS, returns="PyVistaViewDependentFanCloud")
+    @_document(VERB_PARAMS["vdfc"], returns="PyVistaViewDependentFanCloud")
     def vdfc(self, *, progress_bar: bool = False, **params) -> PyVistaViewDependentFanCloud:
         """The view-dependent fan cloud: a merge forest and its fronts (paper section 8).
 
@@ -505,7 +487,7 @@ class FanCloudAccessor:
         >>> actor = vd.add_to(pl, color="tan")
         >>> pl.show()  # doctest: +SKIP
         """
-        values = check_params(FAN_PARAMS + INPUT_PARAMS + VDFC_PARAMS, params)
+        values = verbs.check_values("vdfc", params)
         data = self._dataset if self._dataset.IsA("vtkImageData") else \
             _point_set(self._dataset)
         if progress_bar:
@@ -542,7 +524,7 @@ class FanCloudAccessor:
         -------
         fancloud_vtk.Hierarchy
             ``level(m)`` gives the fan cloud of any level (a
-            :class:`~fancloud_vtk.FanCloud`; ``pv.wrap(fc.to_vtk())`` for
+            :class:`~fancloud_vtk.FanCloud`; ``pv.wrap(fancloud_vtk.to_vtk(fc))`` for
             PyVista), ``level(m, base=edited)`` refines an edited level,
             ``selective(region)`` refines a region of interest. Its
             attribute ``fancloud_input`` says which kind of input it took
@@ -552,22 +534,17 @@ class FanCloudAccessor:
         Examples
         --------
         >>> import pyvista as pv
+        >>> from fancloud_vtk import to_vtk
         >>> from fancloud_vtk.data import bunny_path
         >>> h = pv.read(bunny_path()).fancloud.hierarchy(2000)
         >>> h.fancloud_input
         'triangle mesh'
-        >>> coarse = pv.wrap(h.level(2000).to_vtk())
+        >>> coarse = pv.wrap(to_vtk(h.level(2000)))
         >>> coarse.n_points
         2000
         """
-        from fancloud_vtk.core.reduction import hierarchy
-
-        fans = check_params(FAN_PARAMS, fan_params)
-        check_params(REDUCE_PARAMS, {"weights": weights, "method": method,
-                                     "color_array": color_array, "exact": exact})
-        mesh = check_params(INPUT_PARAMS, {"keep_unreferenced": keep_unreferenced})
-        fc, kind = input_fan_cloud(_point_set(self._dataset), fans, **mesh)
-        h = hierarchy(fc, n_points, weights=weights, method=method,
-                      colors=color_array or None, exact=exact)
-        h.fancloud_input = kind
-        return h
+        values = verbs.check_values("hierarchy", {
+            **fan_params, "n_points": 0 if n_points is None else n_points, "weights": weights,
+            "method": method, "color_array": color_array, "exact": exact,
+            "keep_unreferenced": keep_unreferenced})
+        return verbs.hierarchy(source_of(_point_set(self._dataset)), values)

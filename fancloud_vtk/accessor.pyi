@@ -23,8 +23,8 @@ from typing import Literal
 
 import pyvista as pv
 
+from fancloud_vtk.core.hierarchy import Hierarchy
 from fancloud_vtk.core.model import FanCloud
-from fancloud_vtk.core.reduction import Hierarchy
 from fancloud_vtk.core.vdfc import ViewDependentFanCloud
 
 class PyVistaViewDependentFanCloud(ViewDependentFanCloud):

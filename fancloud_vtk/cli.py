@@ -29,14 +29,14 @@
     The version.
 
 An option's value may start with ``-`` (``--region-center -0.1,0.3,0.7``,
-``--camera "-3,0,0;0,0,0;0,0,1;40"``): see :func:`_join_negative_values`.
+``--camera "-3,0,0;0,0,0;0,0,1;40"``): see
+:func:`fancloud_vtk._argv.join_negative_values`.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import re
 import sys
 import time
 import warnings
@@ -44,23 +44,9 @@ import warnings
 import numpy as np
 
 from fancloud_vtk import __version__
-from fancloud_vtk.params import (
-    ENTROPY_PARAMS,
-    FAN_PARAMS,
-    INPUT_PARAMS,
-    MESH_PARAMS,
-    REDUCE_PARAMS,
-    REFINE_PARAMS,
-    SELECTIVE_PARAMS,
-    VDFC_PARAMS,
-    Param,
-    check_params,
-)
-
-#: ``fancloud selective``: the reduction's options but the amount (--keep | --n) and --mesh,
-#: then the region's
-SELECTIVE_OPTIONS = tuple(p for p in REDUCE_PARAMS if p.name not in ("keep", "n_points", "mesh")) \
-    + SELECTIVE_PARAMS
+from fancloud_vtk._argv import join_negative_values as _join_negative_values
+from fancloud_vtk._argv import value_options as _value_options  # noqa: F401  (tests)
+from fancloud_vtk.params import VERB_PARAMS, Param, check_params
 
 
 def _vector(size: int):
@@ -172,31 +158,56 @@ def _quiet_offscreen_rendering() -> None:
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
 
 
-def _source_arrays(src):
-    """(points, normals, the other point arrays, triangles or None) of a file read."""
+def _read_source(path: str):
+    """A file as the verbs' :class:`~fancloud_vtk.core.verbs.Source`: a fan cloud ``.vtp``
+    as it is; any other point cloud or mesh file as its points, ``Normals``, other point
+    arrays and triangles (if it has faces)."""
+    from fancloud_vtk.core.verbs import Source
+    from fancloud_vtk.io import read_point_cloud
+
+    if path.lower().endswith(".vtp"):
+        from fancloud_vtk.algorithms.convert import fancloud_from_vtk, is_fancloud, read_vtp
+        from fancloud_vtk.io import FileReadError
+
+        try:
+            data = read_vtp(path)
+        except ValueError as exc:  # (a missing file is an OSError: it passes)
+            reason = str(exc).removeprefix(f"could not read {path}: ")
+            raise FileReadError(path, reason) from None
+        if is_fancloud(data):
+            return Source(fancloud=fancloud_from_vtk(data))
+    src = read_point_cloud(path)
     data = dict(src.point_data)
     normals = data.pop("Normals", None)
     faces = src.faces if src.faces is not None and len(src.faces) else None
-    return src.points, normals, data, faces
+    return Source(points=src.points, normals=normals, point_data=data, triangles=faces)
 
 
-def _build(src, args):
-    """The fans of a file's points (of a mesh file: of its triangles' vertices, unless
-    --keep-unreferenced), built with the fan options."""
-    from fancloud_vtk.algorithms.convert import fans_of_points
+def _run_verb(verb: str, args, values: dict, amount: dict | None = None, write=None):
+    """Read ``args.input``, run the verb on it and ``write(result)``, under one progress bar
+    (reading, the verb's stages, writing); (result, read time, verb time). ``values``: the
+    verb's options; ``amount``: the amount options as given."""
+    from fancloud_vtk.core import verbs
 
-    return _convert_source(fans_of_points, src, args)
-
-
-def _convert_source(convert, src, args):
-    """``convert`` (a conversion of ``algorithms.convert``) of a file's arrays, with the
-    fan options, --keep-unreferenced and a progress bar."""
-    progress = _Progress("fans", args.quiet)
+    if amount is not None:  # keep/factor or n_points: exactly one was given (argparse)
+        values = {**values, "n_points": amount.get("n_points") or 0,
+                  **{k: v for k, v in amount.items() if k != "n_points" and v is not None}}
+    values = verbs.check_values(verb, values)
+    progress = _Progress(verb, args.quiet)
     try:
-        return convert(*_source_arrays(src), _params(args, FAN_PARAMS), progress,
-                       keep_unreferenced=args.keep_unreferenced)
+        progress(0.0, f"read {os.path.basename(args.input)}")
+        t0 = time.perf_counter()
+        source = _read_source(args.input)
+        t1 = time.perf_counter()
+        result = verbs.VERBS[verb](source, values, lambda f, m: progress(0.1 + 0.8 * f, m))
+        t2 = time.perf_counter()
+        if write is not None:
+            progress(0.9, f"write {os.path.basename(args.output)}")
+            write(result)
+            progress(1.0, "done")
     finally:
         progress.close()
+    return result, t1 - t0, t2 - t1
 
 
 def _dropped(fc) -> int | None:
@@ -206,11 +217,13 @@ def _dropped(fc) -> int | None:
     return fc.info.get(UNREFERENCED_DROPPED)
 
 
-def _input_row(kind: str, fc) -> tuple[str, str]:
-    """The summary row of the input: its kind, points and dropped unreferenced vertices."""
-    dropped = _dropped(fc)
+def _input_row(kind: str, fc, n_points=None, dropped=None) -> tuple[str, str]:
+    """The summary row of the input: its kind, points and dropped unreferenced vertices
+    (of the fan cloud ``fc``, or ``n_points`` and ``dropped`` when ``fc`` is None)."""
+    if fc is not None:
+        n_points, dropped = fc.n_points, _dropped(fc)
     more = f" ({dropped:,} unreferenced vertices dropped)" if dropped else ""
-    return "input", f"{kind}, {fc.n_points:,} points{more}"
+    return "input", f"{kind}, {n_points:,} points{more}"
 
 
 def _check_output(path: str, ext: str | tuple[str, ...]) -> None:
@@ -224,53 +237,28 @@ def _check_output(path: str, ext: str | tuple[str, ...]) -> None:
 
 
 def cmd_fans(args) -> int:
-    from fancloud_vtk.io import read_point_cloud
+    from fancloud_vtk.algorithms.convert import fancloud_to_vtk, write_vtp
 
     _check_output(args.output, ".vtp")
-    src = read_point_cloud(args.input)
-    t0 = time.perf_counter()
-    fc = _build(src, args)
-    elapsed = time.perf_counter() - t0
-    fc.save(args.output)
+    result, _, elapsed = _run_verb(
+        "fans", args, _params(args, VERB_PARAMS["fans"]),
+        write=lambda r: write_vtp(fancloud_to_vtk(r.fancloud), args.output))
     if not args.quiet:
-        _print_summary(fc, elapsed, args.output)
+        _print_summary(result.fancloud, elapsed, args.output)
     return 0
 
 
-def _load_fancloud(path, args):
-    """A fan cloud .vtp as it is; any other point cloud or mesh file: its fans, built."""
-    from fancloud_vtk.io import read_point_cloud
-
-    if path.lower().endswith(".vtp"):
-        from fancloud_vtk.algorithms.convert import fancloud_from_vtk, is_fancloud, read_vtp
-
-        data = read_vtp(path)
-        if is_fancloud(data):
-            return fancloud_from_vtk(data)
-    return _build(read_point_cloud(path), args)
-
-
 def cmd_mesh(args) -> int:
-    from fancloud_vtk.algorithms.convert import (
-        MESH_FORMATS,
-        add_unreferenced_field,
-        mesh_to_vtk,
-        write_mesh,
-    )
-    from fancloud_vtk.core.mesh import fan_cloud_to_mesh
+    from fancloud_vtk.algorithms.convert import MESH_FORMATS, result_to_vtk, write_mesh
 
     _check_output(args.output, MESH_FORMATS)
-    t0 = time.perf_counter()
-    fc = _load_fancloud(args.input, args)
-    mesh = fan_cloud_to_mesh(fc, **_params(args, MESH_PARAMS))
-    elapsed = time.perf_counter() - t0
-    out = mesh_to_vtk(mesh)
-    add_unreferenced_field(out, _dropped(fc))
-    write_mesh(out, args.output)
+    result, t_read, t_mesh = _run_verb(
+        "mesh", args, _params(args, VERB_PARAMS["mesh"]),
+        write=lambda r: write_mesh(result_to_vtk(r, mark=False), args.output))
     if not args.quiet:
-        dropped = _dropped(fc)
+        dropped = result.unreferenced_dropped
         extra = [("unreferenced dropped", f"{dropped:,}")] if dropped else []
-        _print_mesh_summary(mesh, elapsed, args.output, extra)
+        _print_mesh_summary(result.mesh, t_read + t_mesh, args.output, extra)
     return 0
 
 
@@ -319,94 +307,60 @@ def _print_summary(fc, elapsed, path=None) -> None:
     _print_rows(rows)
 
 
-def _load_any(path, args):
-    """(fan cloud, kind): a fan cloud .vtp as it is, a mesh file's one-rings (its
-    unreferenced vertices dropped unless --keep-unreferenced), or built fans."""
-    from fancloud_vtk.algorithms.convert import KIND_FANS, fan_cloud_of_arrays
-    from fancloud_vtk.io import read_point_cloud
-
-    if path.lower().endswith(".vtp"):
-        from fancloud_vtk.algorithms.convert import fancloud_from_vtk, is_fancloud, read_vtp
-
-        data = read_vtp(path)
-        if is_fancloud(data):
-            return fancloud_from_vtk(data), KIND_FANS
-    return _convert_source(fan_cloud_of_arrays, read_point_cloud(path), args)
-
-
 def cmd_entropy(args) -> int:
-    from fancloud_vtk.core.entropy import entropy
+    from fancloud_vtk.algorithms.convert import source_to_vtk, write_vtp
+    from fancloud_vtk.algorithms.entropy import entropy_output
+    from fancloud_vtk.core.verbs import KIND_MESH
 
     _check_output(args.output, ".vtp")
-    t0 = time.perf_counter()
-    fc, kind = _load_any(args.input, args)
-    ent = entropy(fc, args.weights, colors=args.color_array or None)
-    elapsed = time.perf_counter() - t0
-    fc.point_data.update(ent.as_dict())
-    fc.save(args.output)
+
+    def write(result):
+        # a mesh file whose vertices all stay: the mesh with the arrays, as the filter gives
+        source = result.input
+        keeps_input = result.kind == KIND_MESH and result.source.n_points == len(source.points)
+        write_vtp(entropy_output(result, source_to_vtk(source) if keeps_input else None),
+                  args.output)
+
+    result, t_read, t_ent = _run_verb("entropy", args, _params(args, VERB_PARAMS["entropy"]),
+                                      write=write)
+    fc, ent = result.source, result.entropy
     if not args.quiet:
-        rows = [_input_row(kind, fc), ("weights", str(ent.weights)),
+        rows = [_input_row(result.kind, fc), ("weights", str(ent.weights)),
                 ("mean neighbour distance", f"{ent.mean_distance:.6g}")]
         for name, arr in ent.as_dict().items():
             rows.append((name, f"min {arr.min():.4g}  mean {arr.mean():.4g}  max {arr.max():.4g}"))
-        rows += [("time", f"{elapsed:.2f} s"), ("written", args.output)]
+        rows += [("time", f"{t_read + t_ent:.2f} s"), ("written", args.output)]
         _print_rows(rows)
     return 0
 
 
+def _vdfc_options() -> tuple:
+    """``fancloud vdfc``'s options from its table: the aspect comes from --size."""
+    return tuple(p for p in VERB_PARAMS["vdfc"] if p.name != "aspect")
+
+
+def _amount_options(verb: str) -> tuple:
+    """The verb's options but its amount (--keep | --factor | --n: a group of their own)."""
+    return tuple(p for p in VERB_PARAMS[verb] if p.name not in ("keep", "factor", "n_points"))
+
+
 def cmd_reduce(args) -> int:
-    from fancloud_vtk.core.reduction import reduce
-
-    if args.n_points is None and args.keep is None:
-        raise ValueError("give --keep F (a fraction) or --n N (a count)")
-
-    def call(fc, progress):
-        return reduce(fc, n_points=args.n_points, keep=args.keep, weights=args.weights,
-                      method=args.method, colors=args.color_array or None, exact=args.exact,
-                      progress=progress)
-
     def rows(fc, small):
         return [("kept", f"{small.n_points:,} ({100 * small.n_points / fc.n_points:.1f}%)"),
                 ("weights", str(tuple(args.weights))), ("method", args.method)]
 
-    return _fan_cloud_verb(args, "reduce", "reduction", call, rows)
+    return _fan_cloud_verb(args, "reduce", "reduction", {"keep": args.keep}, rows)
 
 
 def cmd_refine(args) -> int:
-    from fancloud_vtk.core.refinement import refine
-
-    if args.n_points is None and args.factor is None:
-        raise ValueError("give --factor F (> 1) or --n N (a count)")
-
-    def call(fc, progress):
-        return refine(fc, n_points=args.n_points, factor=args.factor, weights=args.weights,
-                      colors=args.color_array or None, move=args.move, exact=args.exact,
-                      progress=progress)
-
     def rows(fc, fine):
         return [("refined", f"{fine.n_points:,} (x{fine.n_points / fc.n_points:.2f})"),
                 ("weights", str(tuple(args.weights)))]
 
-    return _fan_cloud_verb(args, "refine", "refinement", call, rows)
+    return _fan_cloud_verb(args, "refine", "refinement", {"factor": args.factor}, rows)
 
 
 def cmd_selective(args) -> int:
-    from fancloud_vtk.algorithms.reduce import region_of, selective_refinement
-    from fancloud_vtk.core.reduction import target_count
-
-    if args.n_points is None and args.keep is None:
-        raise ValueError("give --keep F (a fraction) or --n N (a count)")
-    # the options, the amount (all but "larger than the cloud") and the region are checked
-    # before the input is read and reduced
-    table = FAN_PARAMS + INPUT_PARAMS + SELECTIVE_OPTIONS
-    values = check_params(table, _params(args, table))
-    target_count(sys.maxsize, n_points=args.n_points, keep=args.keep)
-    values.update(n_points=args.n_points or 0, keep=args.keep)
-    region_of(values)
-
-    def call(fc, progress):
-        return selective_refinement(fc, values, progress)
-
     def rows(fc, out):
         added = out.info["reinserted"]
         return [("coarse level", f"{out.n_points - added:,} points"),
@@ -414,46 +368,41 @@ def cmd_selective(args) -> int:
                 ("reinserted in the region", f"{added:,}"),
                 ("result", f"{out.n_points:,} points")]
 
-    return _fan_cloud_verb(args, "selective", "selective refinement", call, rows)
+    return _fan_cloud_verb(args, "selective", "selective refinement", {"keep": args.keep}, rows)
 
 
-def _fan_cloud_verb(args, name: str, stage: str, call, describe) -> int:
-    """Read the input as a fan cloud, run ``call(fc, progress)``, save the result (its mesh
-    with ``--mesh``) and print the summary: the input, ``describe(fc, result)``, the times."""
+def _fan_cloud_verb(args, verb: str, stage: str, amount: dict, describe) -> int:
+    """Run a verb that gives a fan cloud on the input (fan cloud, mesh or points), write the
+    result (its mesh with ``--mesh``) and print the summary: the input,
+    ``describe(fc, result)``, the times. The options (the amount and the region too) are
+    checked before the input is read."""
     from fancloud_vtk.algorithms.convert import (
         MESH_FORMATS,
-        add_unreferenced_field,
-        mesh_to_vtk,
+        result_to_vtk,
         write_mesh,
+        write_vtp,
     )
-    from fancloud_vtk.core.entropy import UNREFERENCED_DROPPED
+    from fancloud_vtk.core import verbs
 
     as_mesh = getattr(args, "mesh", False)
     _check_output(args.output, MESH_FORMATS if as_mesh else ".vtp")
-    t0 = time.perf_counter()
-    fc, kind = _load_any(args.input, args)
-    t1 = time.perf_counter()
-    progress = _Progress(name, args.quiet)
-    try:
-        out = call(fc, progress)
-    finally:
-        progress.close()
-    t2 = time.perf_counter()
-    rows = [_input_row(kind, fc), *describe(fc, out),
-            ("time: read and fans", f"{t1 - t0:.2f} s"), (f"time: {stage}", f"{t2 - t1:.2f} s")]
-    if as_mesh:
-        from fancloud_vtk.algorithms.reduce import mesh_rings
-        from fancloud_vtk.core.mesh import fan_cloud_to_mesh
+    values = _params(args, _amount_options(verb))
+    if verb == "selective":
+        from fancloud_vtk.core.reduction import target_count
 
-        mesh = fan_cloud_to_mesh(out, rings=mesh_rings(kind))
-        result = mesh_to_vtk(mesh)
-        add_unreferenced_field(result, _dropped(fc))
-        write_mesh(result, args.output)
-        rows += [("triangles", f"{mesh.n_triangles:,}"), ("holes", f"{mesh.stats['holes']}")]
-    else:
-        if _dropped(fc) is not None:  # the count travels with the result's .vtp
-            out.info[UNREFERENCED_DROPPED] = _dropped(fc)
-        out.save(args.output)
+        # the amount (all but "larger than the cloud") and the region, before any work
+        target_count(sys.maxsize, n_points=args.n_points, keep=args.keep)
+        verbs.region_of(verbs.check_values(verb, values))
+    write = write_mesh if as_mesh else write_vtp
+    result, t_read, t_verb = _run_verb(verb, args, values,
+                                       {"n_points": args.n_points, **amount},
+                                       write=lambda r: write(result_to_vtk(r), args.output))
+    fc, out = result.source, result.fancloud
+    rows = [_input_row(result.kind, fc), *describe(fc, out),
+            ("time: read", f"{t_read:.2f} s"), (f"time: {stage}", f"{t_verb:.2f} s")]
+    if as_mesh:
+        rows += [("triangles", f"{result.mesh.n_triangles:,}"),
+                 ("holes", f"{result.mesh.stats['holes']}")]
     rows.append(("written", args.output))
     if not args.quiet:
         _print_rows(rows)
@@ -510,7 +459,7 @@ def _height_field_npz(path: str, spacing):
 
 def _load_forest(args, values):
     """(forest, description) of the ``fancloud vdfc`` input."""
-    from fancloud_vtk.algorithms.vdfc import build_forest, forest_of, image_of_heights
+    from fancloud_vtk.core import verbs
     from fancloud_vtk.core.vdfc import FORMAT, ViewDependentFanCloud
 
     path = args.input
@@ -528,13 +477,11 @@ def _load_forest(args, values):
                 vd = ViewDependentFanCloud.load(path)
                 return vd, f"saved forest, {vd.n_leaves:,} points"
             heights, spacing = _height_field_npz(path, args.spacing)
-        image = image_of_heights(heights, spacing)
-        vd, _ = build_forest(image, values)
+        source = verbs.Source(heights=(heights, spacing, (0.0, 0.0)))
+        vd = verbs.vdfc(source, values)
         return vd, f"height field {heights.shape[0]} x {heights.shape[1]}"
-    fc, kind = _load_any(path, args)
-    vd = forest_of(fc, values)
-    vd.unreferenced_dropped = _dropped(fc)
-    return vd, _input_row(kind, fc)[1]
+    vd = verbs.vdfc(_read_source(path), values)
+    return vd, _input_row(vd.fancloud_input, None, vd.n_leaves, vd.unreferenced_dropped)[1]
 
 
 def cmd_vdfc(args) -> int:
@@ -550,10 +497,8 @@ def cmd_vdfc(args) -> int:
         if args.output is None:
             raise ValueError("--camera needs -o frame.png or -o front.vtp")
         _check_output(args.output, (".png", ".vtp"))
-    values = check_params(FAN_PARAMS + INPUT_PARAMS + VDFC_PARAMS, {
-        **_params(args, FAN_PARAMS + INPUT_PARAMS
-                  + tuple(x for x in VDFC_PARAMS if x.name != "aspect")),
-        "aspect": w / h})
+    values = check_params(VERB_PARAMS["vdfc"], {
+        **_params(args, _vdfc_options()), "aspect": w / h})
     t0 = time.perf_counter()
     vd, what = _load_forest(args, values)
     t1 = time.perf_counter()
@@ -565,10 +510,10 @@ def cmd_vdfc(args) -> int:
             ("time: forest", f"{t1 - t0:.2f} s"), ("e_max", f"{e_max:.6g}")]
     if camera is not None:
         if args.output.lower().endswith(".vtp"):
-            from fancloud_vtk.algorithms.convert import add_unreferenced_field, write_vtp
+            from fancloud_vtk.algorithms.convert import add_unreferenced_field, to_vtk, write_vtp
 
             front = vd.front_arrays(camera, e_max, d_max, superfluous=values["superfluous"])
-            poly = front.to_vtk()
+            poly = to_vtk(front)
             add_unreferenced_field(poly, getattr(vd, "unreferenced_dropped", None))
             write_vtp(poly, args.output)
             stats = front.stats
@@ -639,21 +584,21 @@ def make_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("fans", help="build the fan cloud of a point cloud or mesh file")
     p.add_argument("input", help="input file: .ply .obj .stl .vtp .vtk .vtu .xyz .pts .txt .npy")
     p.add_argument("-o", "--output", required=True, help="output fan cloud (.vtp)")
-    _add_params(p, FAN_PARAMS + INPUT_PARAMS)
+    _add_params(p, VERB_PARAMS["fans"])
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_fans)
 
     p = sub.add_parser("mesh", help="triangle mesh (a 2-manifold) from a fan cloud or points")
     p.add_argument("input", help="a fan cloud .vtp, or a point cloud / mesh file (fans are built)")
     p.add_argument("-o", "--output", required=True, help="output mesh (.ply .obj .vtp .stl .vtk)")
-    _add_params(p, FAN_PARAMS + INPUT_PARAMS + MESH_PARAMS)
+    _add_params(p, VERB_PARAMS["mesh"])
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_mesh)
 
     p = sub.add_parser("entropy", help="entropy of every point (a fan cloud .vtp with arrays)")
     p.add_argument("input", help="a fan cloud .vtp, a mesh file (one-rings) or a point cloud")
     p.add_argument("-o", "--output", required=True, help="output fan cloud with entropy (.vtp)")
-    _add_params(p, FAN_PARAMS + INPUT_PARAMS + ENTROPY_PARAMS)
+    _add_params(p, VERB_PARAMS["entropy"])
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_entropy)
 
@@ -665,8 +610,7 @@ def make_parser() -> argparse.ArgumentParser:
     amount.add_argument("--keep", type=float, default=None, help="fraction of points to keep")
     amount.add_argument("--n", "--n-points", dest="n_points", type=int, default=None,
                         help="number of points to keep")
-    _add_params(p, FAN_PARAMS + INPUT_PARAMS + tuple(x for x in REDUCE_PARAMS
-                                                     if x.name not in ("keep", "n_points")))
+    _add_params(p, _amount_options("reduce"))
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_reduce)
 
@@ -679,8 +623,7 @@ def make_parser() -> argparse.ArgumentParser:
                         help="the result has round(F * n) points (F > 1)")
     amount.add_argument("--n", "--n-points", dest="n_points", type=int, default=None,
                         help="number of points of the result")
-    _add_params(p, FAN_PARAMS + INPUT_PARAMS + tuple(x for x in REFINE_PARAMS
-                                                     if x.name not in ("factor", "n_points")))
+    _add_params(p, _amount_options("refine"))
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_refine)
 
@@ -693,7 +636,7 @@ def make_parser() -> argparse.ArgumentParser:
                         help="fraction of points in the coarse level")
     amount.add_argument("--n", "--n-points", dest="n_points", type=int, default=None,
                         help="number of points in the coarse level")
-    _add_params(p, FAN_PARAMS + INPUT_PARAMS + SELECTIVE_OPTIONS)
+    _add_params(p, _amount_options("selective"))
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_selective)
 
@@ -712,7 +655,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--spacing", type=_vector(2), default=None,
                    help="grid spacing dx,dy of a height field .npz without dx/dy (default 1,1)")
     p.add_argument("--save-forest", metavar="F.npz", help="also save the forest")
-    _add_params(p, FAN_PARAMS + INPUT_PARAMS + tuple(x for x in VDFC_PARAMS if x.name != "aspect"))
+    _add_params(p, _vdfc_options())
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_vdfc)
 
@@ -734,55 +677,6 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("bench_args", nargs=argparse.REMAINDER, help="benchmark and its options")
     p.set_defaults(func=cmd_bench)
     return parser
-
-
-#: a value argparse would take for an option: a negative number or a list of them
-#: ("-0.1,0.3,0.7", "-3,0,0;0,0,0;0,0,1;40", "-.5")
-_NEGATIVE_VALUE = re.compile(r"-[0-9.]")
-
-
-def _value_options(parser: argparse.ArgumentParser) -> dict[str, argparse.Action]:
-    """The option strings of ``parser`` that take exactly one value."""
-    return {flag: action for action in parser._actions if action.option_strings
-            and action.nargs is None for flag in action.option_strings}
-
-
-def _join_negative_values(parser: argparse.ArgumentParser, argv: list[str]) -> list[str]:
-    """``argv`` with every value that starts like a negative number joined to its option.
-
-    argparse reads ``--region-center -0.1,0.3,0.7`` as two options (and fails with
-    "expected one argument"): such a value is passed as ``--region-center=-0.1,0.3,0.7``
-    (``-o-1.png`` for a short option). Only options of the subcommand that take a value
-    are joined (abbreviations too, when they name one option); nothing after ``--``.
-    """
-    sub = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
-    command = next((i for i, arg in enumerate(argv) if not arg.startswith("-")), None)
-    if sub is None or command is None or argv[command] not in sub.choices:
-        return argv
-    subparser = sub.choices[argv[command]]
-    takes_value = _value_options(subparser)
-    every_flag = [f for a in subparser._actions for f in a.option_strings]
-    out, i = argv[:command + 1], command + 1
-    while i < len(argv):
-        arg = argv[i]
-        if arg == "--":
-            out.extend(argv[i:])
-            break
-        action = takes_value.get(arg)
-        if action is None and arg.startswith("--") and "=" not in arg:
-            named = {takes_value.get(f) for f in every_flag if f.startswith(arg)}
-            action = named.pop() if len(named) == 1 else None
-        if action is not None and i + 1 < len(argv):
-            value = argv[i + 1]
-            if _NEGATIVE_VALUE.match(value):
-                out.append(f"{arg}={value}" if arg.startswith("--") else arg + value)
-            else:
-                out += [arg, value]  # the value is the option's, whatever it looks like
-            i += 2
-            continue
-        out.append(arg)
-        i += 1
-    return out
 
 
 def main(argv=None) -> int:

@@ -21,6 +21,8 @@ import os
 import time
 import warnings
 
+from fancloud_vtk.render import render_panels
+
 
 def render_fancloud(fc, path: str, title: str = "") -> None:
     """Offscreen picture: the shaded fan cloud and, beside it, its open fans in red."""
@@ -28,10 +30,12 @@ def render_fancloud(fc, path: str, title: str = "") -> None:
     import pyvista as pv
     from vtkmodules.vtkCommonCore import vtkLogger
 
+    from fancloud_vtk.algorithms.convert import to_vtk
+
     # without a display VTK warns "bad X server connection" and renders
     # offscreen all the same: keep errors, drop that warning
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
-    mesh = pv.wrap(fc.to_vtk())
+    mesh = pv.wrap(to_vtk(fc))
     pl = pv.Plotter(off_screen=True, shape=(1, 2), window_size=(1400, 700), border=False)
     pl.subplot(0, 0)
     pl.add_text(f"{title}fan cloud, shaded ({fc.n_points:,} points)", font_size=10)
@@ -54,7 +58,7 @@ def render_mesh(fc, mesh, path: str, title: str = "") -> None:
     import pyvista as pv
     from vtkmodules.vtkCommonCore import vtkLogger
 
-    from fancloud_vtk.algorithms.convert import mesh_to_vtk
+    from fancloud_vtk.algorithms.convert import mesh_to_vtk, to_vtk
 
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)  # see render_fancloud
     s = mesh.stats
@@ -62,7 +66,7 @@ def render_mesh(fc, mesh, path: str, title: str = "") -> None:
     pl.subplot(0, 0)
     pl.add_text(f"{title}fan cloud ({fc.n_points:,} points, "
                 f"{len(fc.triangles()):,} distinct fan triangles)", font_size=10)
-    pl.add_mesh(pv.wrap(fc.to_vtk()), color="#d8c8a8", smooth_shading=True, specular=0.3)
+    pl.add_mesh(pv.wrap(to_vtk(fc)), color="#d8c8a8", smooth_shading=True, specular=0.3)
     pl.subplot(0, 1)
     pl.add_text(f"{title}mesh ({mesh.n_triangles:,} triangles, {s['holes']} holes, "
                 f"{s['non_manifold_edges'] + s['non_manifold_vertices']} non-manifold)",
@@ -78,42 +82,6 @@ def render_mesh(fc, mesh, path: str, title: str = "") -> None:
 
 #: the bunny's head (pymeshlab's bunny.obj coordinates), Figure 11's region of interest
 HEAD = ((0.1, 0.33, 0.36), 0.14)
-
-
-def render_panels(panels, path: str) -> None:
-    """Offscreen picture: one shaded mesh with edges per panel ``(title, fan cloud)``.
-
-    A panel ``(title, fan cloud, marked)`` also draws the points ``marked``
-    (an index array) in red.
-    """
-    import pyvista as pv
-    from vtkmodules.vtkCommonCore import vtkLogger
-
-    from fancloud_vtk.algorithms.convert import mesh_to_vtk
-    from fancloud_vtk.core.mesh import DoubtfulMeshWarning, fan_cloud_to_mesh
-
-    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)  # see render_fancloud
-    pl = pv.Plotter(off_screen=True, shape=(1, len(panels)), window_size=(700 * len(panels), 700),
-                    border=False)
-    for i, (title, fc, *marked) in enumerate(panels):
-        pl.subplot(0, i)
-        # a doubtful mesh (a reduction that broke the surface) is said in the panel
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", DoubtfulMeshWarning)
-            mesh = fan_cloud_to_mesh(fc, self_intersections=False)
-        doubts = [str(w.message).removeprefix("fan_cloud_to_mesh: ").split(" (")[0]
-                  for w in caught if issubclass(w.category, DoubtfulMeshWarning)]
-        pl.add_text(title + "".join(f"\nmesh: {d}" for d in doubts), font_size=10)
-        pl.add_mesh(pv.wrap(mesh_to_vtk(mesh)), color="#d8c8a8", show_edges=True,
-                    edge_color="#9c8f75", line_width=0.3, specular=0.3)
-        if marked and len(marked[0]):
-            pl.add_mesh(pv.PolyData(fc.points[marked[0]]), color="red", point_size=3,
-                        render_points_as_spheres=True)
-    pl.link_views()
-    pl.camera_position = "xy"
-    pl.camera.zoom(1.3)
-    pl.screenshot(path)
-    pl.close()
 
 
 def reduction_panel(fc, out_dir: str, quiet: bool) -> dict:
@@ -164,7 +132,7 @@ def refinement_panel(fc, mesh, out_dir: str, quiet: bool) -> dict:
     marked."""
     import numpy as np
 
-    from fancloud_vtk._bench_peers import MeshDistance
+    from fancloud_vtk.bench.metrics import MeshDistance
     from fancloud_vtk.cli import _print_rows, _Progress
     from fancloud_vtk.core.reduction import reduce
     from fancloud_vtk.core.refinement import refine
@@ -204,6 +172,7 @@ def terrain_panel(out_dir: str, quiet: bool) -> dict:
     import pyvista as pv
     from vtkmodules.vtkCommonCore import vtkLogger
 
+    from fancloud_vtk.algorithms.convert import to_vtk
     from fancloud_vtk.cli import _print_rows, _Progress
     from fancloud_vtk.core.vdfc import ViewDependentFanCloud, terrain_blocks, terrain_fan_cloud
     from fancloud_vtk.data import jacksboro_terrain
@@ -227,7 +196,7 @@ def terrain_panel(out_dir: str, quiet: bool) -> dict:
     vd.front_arrays(camera, e_max)  # compile
     vd.reset_front()
     front = vd.front_arrays(camera, e_max)
-    poly = pv.wrap(front.to_vtk())
+    poly = pv.wrap(to_vtk(front))
     png = os.path.join(out_dir, "terrain_vdfc.png")
     pl = pv.Plotter(off_screen=True, shape=(1, 2), window_size=(2 * size[0], size[1]),
                     border=False)
@@ -269,7 +238,7 @@ def terrain_panel(out_dir: str, quiet: bool) -> dict:
 
 def run_demo(out_dir: str = "fancloud_demo", quiet: bool = False) -> dict:
     """Run the demo; return the summary (also printed)."""
-    from fancloud_vtk.algorithms.convert import mesh_to_vtk, write_mesh
+    from fancloud_vtk.algorithms.convert import mesh_to_vtk, save, write_mesh
     from fancloud_vtk.cli import _print_mesh_summary, _print_summary, _Progress
     from fancloud_vtk.core.fans import build_fans
     from fancloud_vtk.core.mesh import DoubtfulMeshWarning, fan_cloud_to_mesh
@@ -292,7 +261,7 @@ def run_demo(out_dir: str = "fancloud_demo", quiet: bool = False) -> dict:
     progress.close()
     vtp = os.path.join(out_dir, "bunny_fans.vtp")
     png = os.path.join(out_dir, "bunny_fans.png")
-    fc.save(vtp)
+    save(fc, vtp)
     render_fancloud(fc, png, "bunny: ")
     print(f"fancloud demo: Stanford bunny from pymeshlab ({bunny_path()}), points only")
     print(f"(numba warm-up / compile: {compile_time:.2f} s)")

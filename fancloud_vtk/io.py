@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fancloud_vtk.core.validation import FileReadError  # the core raises it too: one class
+
 __all__ = [
     "SUPPORTED_FORMATS",
     "DroppedArrayWarning",
@@ -48,26 +50,6 @@ SUPPORTED_FORMATS: tuple[str, ...] = (
 )
 
 _UNIT_NORMAL_TOL = 1e-2
-
-
-class FileReadError(ValueError):
-    """A file could not be read: names the path and the reason.
-
-    Parameters
-    ----------
-    path : str
-        The file that could not be read.
-    reason : str
-        Why it could not be read.
-    """
-
-    def __init__(self, path: str, reason: str) -> None:
-        super().__init__(path, reason)
-        self.path = path
-        self.reason = reason
-
-    def __str__(self) -> str:
-        return f"cannot read {self.path!r}: {self.reason}"
 
 
 class DroppedArrayWarning(UserWarning):

@@ -344,3 +344,27 @@ VDFC_PARAMS: tuple[Param, ...] = (
           "both diagonals' triangles keeps one pair, paper section 4): about 2.0 triangles "
           "per point instead of 2.15, at about twice the update time"),
 )
+
+
+def _without(table: tuple[Param, ...], *names: str) -> tuple[Param, ...]:
+    return tuple(p for p in table if p.name not in names)
+
+
+#: Every verb's parameters: the verb layer (:mod:`fancloud_vtk.core.verbs`) checks
+#: its values against these, the VTK algorithm of the verb has exactly these
+#: properties, the accessor verb these keywords and the ``fancloud`` command these
+#: options (the amount -- keep, factor, n_points -- as one group of which one is given).
+VERB_PARAMS: dict[str, tuple[Param, ...]] = {
+    "fans": FAN_PARAMS + INPUT_PARAMS,
+    "mesh": FAN_PARAMS + INPUT_PARAMS + MESH_PARAMS,
+    "entropy": FAN_PARAMS + INPUT_PARAMS + ENTROPY_PARAMS,
+    "reduce": FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS,
+    "hierarchy": FAN_PARAMS + INPUT_PARAMS + _without(REDUCE_PARAMS, "keep", "mesh"),
+    "selective": FAN_PARAMS + INPUT_PARAMS + _without(REDUCE_PARAMS, "mesh") + SELECTIVE_PARAMS,
+    "refine": FAN_PARAMS + INPUT_PARAMS + REFINE_PARAMS,
+    "vdfc": FAN_PARAMS + INPUT_PARAMS + VDFC_PARAMS,
+}
+
+#: The verbs whose result size is given either by ``n_points`` or by this fraction
+#: (``n_points`` 0: the fraction is used).
+AMOUNTS: dict[str, str] = {"reduce": "keep", "selective": "keep", "refine": "factor"}

@@ -15,7 +15,7 @@ from vtkmodules.vtkFiltersCore import vtkPolyDataNormals
 from vtkmodules.vtkIOPLY import vtkPLYReader, vtkPLYWriter
 from vtkmodules.vtkIOXML import vtkXMLPolyDataReader, vtkXMLPolyDataWriter
 
-from fancloud_vtk import Cancelled, FanCloud, FanCloudInputError, build_fans
+from fancloud_vtk import Cancelled, FanCloudInputError, build_fans, from_vtk
 from fancloud_vtk.algorithms import (
     FanCloudEntropyFilter,
     FanCloudFilter,
@@ -161,7 +161,7 @@ def test_output_matches_build_fans_and_input_is_unchanged(cloud):
     fans.SetInputDataObject(0, poly)
     out = run(fans)
     assert is_fancloud(out)
-    got = FanCloud.from_vtk(out)
+    got = from_vtk(out)
     expected = build_fans(p, k=7, max_angle=80.0, point_data={"RGB": rgb, "label": label})
     for name in ("points", "offsets", "ring", "normals", "open", "rotated"):
         np.testing.assert_array_equal(getattr(got, name), getattr(expected, name), err_msg=name)
@@ -175,7 +175,7 @@ def test_input_normals_orient_the_fans(cloud):
     p = cloud[0]
     fans = FanCloudFilter()
     fans.SetInputDataObject(0, point_cloud(p, Normals=-p))
-    out = FanCloud.from_vtk(run(fans))
+    out = from_vtk(run(fans))
     assert np.all(np.einsum("ij,ij->i", out.normals, p) < 0), "inward, as given"
     assert "Normals" not in out.point_data
 
@@ -367,8 +367,8 @@ def test_a_fan_cloud_as_input_gives_the_same_fans(cloud):
     first = fancloud_to_vtk(build_fans(cloud[0]))
     fans = FanCloudFilter()
     fans.SetInputDataObject(0, first)
-    again = FanCloud.from_vtk(run(fans))
-    np.testing.assert_array_equal(again.triangles(), FanCloud.from_vtk(first).triangles())
+    again = from_vtk(run(fans))
+    np.testing.assert_array_equal(again.triangles(), from_vtk(first).triangles())
     assert sorted(again.point_data) == []  # the old fan arrays are not passed through twice
 
 

@@ -7,7 +7,15 @@ from conftest import dataset_fingerprint, fingerprint
 from plyfile import PlyData, PlyElement
 from shapes import sphere
 
-from fancloud_vtk import DuplicatePointsWarning, FanCloud, FanCloudInputError, build_fans
+from fancloud_vtk import (
+    DuplicatePointsWarning,
+    FanCloudInputError,
+    build_fans,
+    from_vtk,
+    load,
+    save,
+    to_vtk,
+)
 from fancloud_vtk.io import FileReadError, read_point_cloud
 
 N = 2000
@@ -159,7 +167,7 @@ def test_duplicated_points_are_merged_and_mapped_back():
     np.testing.assert_array_equal(ids, np.sort(first))
     assert fc.n_open == 0
     # the VTK round trip keeps the map
-    back = FanCloud.from_vtk(fc.to_vtk())
+    back = from_vtk(to_vtk(fc))
     np.testing.assert_array_equal(back.point_data["original_id"], ids)
 
 
@@ -178,14 +186,14 @@ def test_duplicates_leaving_too_few_points():
 
 def test_truncated_or_garbage_fan_cloud_files(tmp_path):
     path = tmp_path / "fans.vtp"
-    build_fans(good()).save(path)
+    save(build_fans(good()), path)
     data = path.read_bytes()
     for name, content in [("half.vtp", data[: len(data) // 2]), ("head.vtp", data[:200]),
                           ("noise.vtp", bytes(range(256)) * 8)]:
         bad = tmp_path / name
         bad.write_bytes(content)
         with pytest.raises(ValueError, match=f"could not read .*{name}: vtkXMLPolyDataReader"):
-            FanCloud.load(bad)
+            load(bad)
         assert bad.read_bytes() == content
 
 

@@ -1,13 +1,19 @@
 """Smoke tests of ``fancloud bench fans`` and ``fancloud bench mesh`` on tiny sizes."""
 
+import ast
 import importlib.util
 import json
 import os
+import re
+import shlex
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from fancloud_vtk.bench import COLUMNS, parse_size, parse_sizes, size_label, surface_points
+import fancloud_vtk
+from fancloud_vtk.bench import parse_size, parse_sizes, size_label, surface_points
+from fancloud_vtk.bench.report import COLUMNS, HEADER_KEYS
 from fancloud_vtk.cli import main as cli_main
 
 
@@ -105,10 +111,37 @@ def test_bench_fans_smoke(tmp_path, capsys):
     assert "NUMBA_NUM_THREADS=2" in repro[0]["parameters"]
 
     raw = json.loads((out / "fans.json").read_text())
+    _assert_header(raw, argv[1:])
     assert raw["args"]["sizes"] == [5000]
     assert len(raw["speed"][0]["ours_times"]) == 1
     assert raw["memory"][0]["peak"] >= raw["memory"][0]["rss_before"] > 0
     assert raw["machine"]["cores"] >= 1
+
+
+def _assert_header(raw: dict, argv: list[str]) -> None:
+    """The header every result JSON starts with (fancloud_vtk.bench.report.header)."""
+    assert list(raw)[:len(HEADER_KEYS)] == list(HEADER_KEYS)
+    assert raw["argv"] == argv
+    assert raw["command"] == shlex.join(["fancloud", "bench", *argv])
+    assert re.fullmatch(r"\d{4}-\d\d-\d\d \d\d:\d\d:\d\d.*", raw["date"])
+    m = raw["machine"]
+    assert m["cpu"] and m["cores"] >= 1 and m["memory_bytes"] > 0
+    assert len(m["load_average"]) == 3
+    sw = raw["software"]
+    for key in ("python", "numpy", "scipy", "numba", "vtk", "fancloud_vtk"):
+        assert sw[key], key
+    commit = raw["commit"]
+    assert commit is None or (re.fullmatch(r"[0-9a-f]{40}", commit["sha"])
+                              and isinstance(commit["dirty"], bool))
+
+
+def test_commit_of_this_checkout():
+    from fancloud_vtk.bench.report import commit_info
+
+    commit = commit_info()
+    if not (Path(fancloud_vtk.__file__).parent.parent / ".git").exists():
+        pytest.skip("not a git checkout")
+    assert re.fullmatch(r"[0-9a-f]{40}", commit["sha"]) and commit["dirty"] in (True, False)
 
 
 def test_bench_requires_a_mode(capsys):
@@ -161,7 +194,7 @@ def fake_peers(tmp_path, monkeypatch):
 
 
 def test_parse_data():
-    from fancloud_vtk.bench import parse_data
+    from fancloud_vtk.bench.mesh import parse_data
 
     assert parse_data(["bunny", "sphere", "5k,2000"], 100) == [
         ("bunny", None), ("sphere", 100), ("sphere", 5000), ("sphere", 2000)]
@@ -183,7 +216,7 @@ def _tables(text):
 
 
 def test_bench_mesh_smoke(tmp_path, capsys, fake_peers):
-    from fancloud_vtk.bench import COLUMNS, COMPARE_COLUMNS
+    from fancloud_vtk.bench.mesh import COMPARE_COLUMNS
 
     out = tmp_path / "bench"
     argv = ["bench", "mesh", "--data", "3000", "--methods", "ours", "meshlib", "ball-pivoting",
@@ -234,6 +267,7 @@ def test_bench_mesh_smoke(tmp_path, capsys, fake_peers):
         assert 0 <= float(row["distance mean"]) <= float(row["distance max"]) < 0.01
 
     raw = json.loads((out / "mesh.json").read_text())
+    _assert_header(raw, argv[1:])
     assert raw["args"]["data"] == ["sphere:3000"]
     methods = raw["datasets"][0]["methods"]
     assert [m["method"] for m in methods][:3] == ["ours", "meshlib", "ball-pivoting"]
@@ -249,8 +283,9 @@ def test_bench_mesh_smoke(tmp_path, capsys, fake_peers):
     ("load_hang", "timeout", "timed out after 2 s"),
 ])
 def test_bench_mesh_reports_broken_methods(tmp_path, fake_peers, loader, status, message):
-    from fancloud_vtk._bench_peers import method_for, run_method
-    from fancloud_vtk.bench import compare_rows
+    from fancloud_vtk.bench.harness import run_method
+    from fancloud_vtk.bench.mesh import compare_rows
+    from fancloud_vtk.bench.peers import method_for
 
     points = tmp_path / "points.npy"
     np.save(points, surface_points(500, seed=0, shape="sphere"))
@@ -295,7 +330,7 @@ def load_hang_second():
 
 
 def test_parse_reduce_data():
-    from fancloud_vtk.bench_reduce import parse_reduce_data
+    from fancloud_vtk.bench.reduce import parse_reduce_data
 
     assert parse_reduce_data(["bunny", "bone,5k"]) == [
         ("bunny", None), ("bone", None), ("bumpy", 5000)]
@@ -304,7 +339,7 @@ def test_parse_reduce_data():
 
 
 def test_bench_reduce_smoke(tmp_path, capsys, fake_peers):
-    from fancloud_vtk.bench_reduce import TABLE_COLUMNS
+    from fancloud_vtk.bench.reduce import TABLE_COLUMNS
 
     out = tmp_path / "bench"
     argv = ["bench", "reduce", "--data", "3000", "--keep", "0.3", "--curve", "--methods",
@@ -362,7 +397,8 @@ def test_bench_reduce_smoke(tmp_path, capsys, fake_peers):
 ])
 def test_bench_reduce_reports_each_fraction(tmp_path, monkeypatch, loader, timeout, status,
                                             message):
-    from fancloud_vtk._bench_peers import reduce_method_for, run_reduce_method, save_reduce_data
+    from fancloud_vtk.bench.harness import run_reduce_method, save_reduce_data
+    from fancloud_vtk.bench.peers import reduce_method_for
 
     folder = tmp_path / "fake"
     folder.mkdir()
@@ -387,7 +423,7 @@ def test_bench_reduce_reports_each_fraction(tmp_path, monkeypatch, loader, timeo
 def test_reduce_colour_rows_one_per_colour_setting():
     """Each of ours with the colour weight that ran gets its own row against the best peer;
     one that did not run gets none, but the paper's setting says it was not run."""
-    from fancloud_vtk.bench_reduce import _colour_rows
+    from fancloud_vtk.bench.reduce import _colour_rows
 
     def result(method, rms, status="ok"):
         return {"method": method, "label": method, "keep": 0.42, "status": status,
@@ -420,7 +456,7 @@ def test_reduce_quality_rows_add_the_error_method_and_the_subset_reference():
     """Mean Hausdorff rows: the figure's (ours (1,1,50,0)), ours error against the same target,
     and the quadric collapse on input vertices as a reference without one; only those that
     ran."""
-    from fancloud_vtk.bench_reduce import _quality_rows
+    from fancloud_vtk.bench.reduce import _quality_rows
 
     def result(method, mean, feature=1e-4):
         return {"method": method, "label": method, "keep": 0.176, "status": "ok",
@@ -441,3 +477,94 @@ def test_reduce_quality_rows_add_the_error_method_and_the_subset_reference():
     ds["results"] = [r for r in ds["results"] if r["method"] not in ("ours-error",
                                                                        "quadric-subset")]
     assert len(_quality_rows(ds, "bunny", 0.176, judged=True)) == 2
+
+
+# -- the package ---------------------------------------------------------------------------
+
+
+def _bench_parser_cases():
+    """(mode, flag, value) of every bench option taking one value, with a value that
+    starts with '-' and that its type takes."""
+    import argparse
+
+    from fancloud_vtk.bench import make_parser
+
+    sub = next(a for a in make_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    values = {None: "-0.1,0.3,0.7", int: "-3", float: "-1e3"}  # -1e3: not a number to argparse
+    for mode, parser in sub.choices.items():
+        for action in parser._actions:
+            if (action.option_strings and action.nargs is None and action.type in values
+                    and action.choices is None):
+                yield mode, action.option_strings[-1], values[action.type], action
+
+
+@pytest.mark.parametrize(("mode", "flag", "value", "action"),
+                         [pytest.param(*c, id=f"{c[0]}{c[1]}") for c in _bench_parser_cases()])
+def test_bench_options_take_values_starting_with_minus(mode, flag, value, action):
+    from fancloud_vtk._argv import join_negative_values
+    from fancloud_vtk.bench import make_parser
+
+    parser = make_parser()
+    args = parser.parse_args(join_negative_values(parser, [mode, flag, value]))
+    expected = action.type(value) if action.type is not None else value
+    assert getattr(args, action.dest) == expected
+
+
+def test_bench_negative_values_reach_the_benchmark(tmp_path, capsys):
+    # argparse alone stops at "expected one argument"; joined, the bench's own checks speak
+    rc = cli_main(["bench", "vdfc", "--e-max", "-1e3", "--out", str(tmp_path), "-q"])
+    assert rc == 2
+    assert "--e-max > 0" in capsys.readouterr().err
+    # --camera abbreviates --cameras (an int): the value is that option's, and not an int
+    with pytest.raises(SystemExit):
+        cli_main(["bench", "vdfc", "--camera", "-3,0,0;0,0,0;0,0,1;40"])
+    err = capsys.readouterr().err
+    assert "invalid int value: '-3,0,0;0,0,0;0,0,1;40'" in err
+    assert "expected one argument" not in err
+
+
+def test_bench_imports_neither_cli_nor_demo():
+    """No import in fancloud_vtk/bench/ (top level or in a function) of the command line or
+    the demo: they sit on top of the bench, not under it."""
+    folder = Path(fancloud_vtk.__file__).parent / "bench"
+    files = sorted(folder.glob("*.py"))
+    assert {"harness.py", "metrics.py", "peers.py", "report.py", "fans.py", "mesh.py",
+            "reduce.py", "refine.py", "vdfc.py"} <= {f.name for f in files}
+    banned = ("fancloud_vtk.cli", "fancloud_vtk.demo")
+    found = []
+    for path in files:
+        tree = ast.parse(path.read_text(), str(path))
+        for node in ast.walk(tree):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:  # relative: resolve against fancloud_vtk.bench
+                    base = ["fancloud_vtk", "bench"][: 2 - (node.level - 1)]
+                    module = ".".join([*base, *([node.module] if node.module else [])])
+                else:
+                    module = node.module or ""
+                names = [module, *(f"{module}.{a.name}" for a in node.names)]
+            elif (isinstance(node, ast.Call) and node.args
+                  and isinstance(node.args[0], ast.Constant)
+                  and isinstance(node.args[0].value, str)
+                  and getattr(node.func, "attr", getattr(node.func, "id", "")) in (
+                      "import_module", "__import__")):
+                names = [node.args[0].value]
+            for name in names:
+                if any(name == b or name.startswith(b + ".") for b in banned):
+                    found.append(f"{path.name}:{node.lineno}: {name}")
+    assert not found, found
+
+
+def test_metrics_import_alone():
+    """The measures load without the benchmarks (the tests and the demo use them)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; import fancloud_vtk.bench.metrics; "
+            "print(sorted(m for m in sys.modules if m.startswith('fancloud_vtk.bench')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == str(["fancloud_vtk.bench", "fancloud_vtk.bench.common",
+                               "fancloud_vtk.bench.metrics"])

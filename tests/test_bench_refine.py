@@ -5,8 +5,9 @@ import json
 import numpy as np
 from test_bench import _is_number, _tables
 
-from fancloud_vtk.bench import COLUMNS
-from fancloud_vtk.bench_refine import CYCLE_COLUMNS, signed_volume
+from fancloud_vtk.bench.metrics import signed_volume
+from fancloud_vtk.bench.refine import CYCLE_COLUMNS
+from fancloud_vtk.bench.report import COLUMNS
 from fancloud_vtk.cli import main as cli_main
 
 PNG = b"\x89PNG\r\n\x1a\n"

@@ -6,8 +6,8 @@ import math
 import numpy as np
 from test_bench import _is_number, _tables
 
-from fancloud_vtk.bench import COLUMNS
-from fancloud_vtk.bench_vdfc import PEER_COLUMNS, SURFACES, _surface_errors, grid_triangles
+from fancloud_vtk.bench.report import COLUMNS
+from fancloud_vtk.bench.vdfc import PEER_COLUMNS, SURFACES, _surface_errors, grid_triangles
 from fancloud_vtk.cli import main as cli_main
 
 PNG = b"\x89PNG\r\n\x1a\n"

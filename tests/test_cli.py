@@ -9,7 +9,7 @@ import pytest
 from plyfile import PlyData, PlyElement
 from shapes import sphere
 
-from fancloud_vtk import FanCloud, build_fans
+from fancloud_vtk import build_fans, load, save
 from fancloud_vtk.cli import main
 
 N = 2000
@@ -58,7 +58,7 @@ def test_fans_on_each_input_format(tmp_path, points, fmt, capsys):
     src = write_input(tmp_path, fmt, points)
     out = tmp_path / "fans.vtp"
     assert main(["fans", str(src), "-o", str(out), "--k", "6"]) == 0
-    fc = FanCloud.load(out)
+    fc = load(out)
     np.testing.assert_array_equal(fc.points, points)
     expected = build_fans(points, k=6)
     np.testing.assert_array_equal(fc.ring, expected.ring)
@@ -76,7 +76,7 @@ def test_parameters_are_forwarded(tmp_path, points, capsys):
             "--max-replacements", "30", "--no-rotate-sharp-edges", "--quiet"]
     assert main(args) == 0
     assert capsys.readouterr().out == "", "--quiet prints nothing"
-    fc = FanCloud.load(out)
+    fc = load(out)
     expected = build_fans(points, k=8, max_angle=75.0, max_replacements=30,
                           rotate_sharp_edges=False)
     np.testing.assert_array_equal(fc.ring, expected.ring)
@@ -89,7 +89,7 @@ def test_the_command_in_a_subprocess(tmp_path, points):
     res = run_cli("fans", src, "-o", out, "--k", "6")
     assert res.returncode == 0, res.stderr
     assert "distinct triangles / point" in res.stdout
-    assert FanCloud.load(out).n_points == N
+    assert load(out).n_points == N
 
 
 def test_duplicates_warn_in_one_line_and_are_mapped(tmp_path, points):
@@ -101,7 +101,7 @@ def test_duplicates_warn_in_one_line_and_are_mapped(tmp_path, points):
     assert res.stderr.startswith("fancloud fans: warning: 3 duplicate point(s) merged")
     assert len(res.stderr.strip().splitlines()) == 1
     assert re.search(r"^duplicates merged +3$", res.stdout, re.MULTILINE)
-    fc = FanCloud.load(out)
+    fc = load(out)
     np.testing.assert_array_equal(fc.point_data["original_id"], np.arange(N))
 
 
@@ -136,7 +136,7 @@ def test_missing_input(tmp_path, capsys):
 def test_truncated_input(tmp_path, points, fmt, capsys):
     if fmt == "vtp":
         src = tmp_path / "cloud.vtp"
-        build_fans(points).save(src)
+        save(build_fans(points), src)
     else:
         src = write_input(tmp_path, fmt, points)
     data = src.read_bytes()

@@ -14,7 +14,7 @@ import tqdm
 from shapes import sphere
 
 import fancloud_vtk
-from fancloud_vtk import FanCloud
+from fancloud_vtk import load
 from fancloud_vtk.cli import _join_negative_values, _Progress, _value_options, main, make_parser
 
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -125,7 +125,7 @@ def test_selective_with_a_negative_region_center(cloud, tmp_path, capsys):
     added = int(re.search(r"^reinserted in the region +(\d+)$", printed.out, re.M).group(1))
     assert added > 0
     assert main(["selective", "-o", str(ref), *common, "--region-center=-0.1,0.3,0.7", "-q"]) == 0
-    got, expected = FanCloud.load(out), FanCloud.load(ref)
+    got, expected = load(out), load(ref)
     assert got.n_points == 500 + added
     np.testing.assert_array_equal(got.points, expected.points)
     np.testing.assert_array_equal(got.point_data["original_id"],

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from fancloud_vtk._bench_peers import MeshDistance
+from fancloud_vtk.bench.metrics import MeshDistance
 from fancloud_vtk.corpus import (
     DENSITY_RATIO,
     KINDS,
@@ -311,7 +311,7 @@ def test_bad_arguments_raise_value_error(cow):
 
 
 def test_parse_corpus_data():
-    from fancloud_vtk.bench import parse_data
+    from fancloud_vtk.bench.mesh import parse_data
 
     assert parse_data(["corpus-small", "bunny,corpus"], 10) == [
         ("corpus-small", None), ("bunny", None), ("corpus", None)]
@@ -319,7 +319,7 @@ def test_parse_corpus_data():
 
 def test_measure_corpus_counts_outliers_apart():
     """The corpus figures of a mesh, without a subprocess: a scan meshed by hand."""
-    from fancloud_vtk.bench import _measure_corpus, corpus_data, corpus_rows
+    from fancloud_vtk.bench.mesh import _measure_corpus, corpus_data, corpus_rows
 
     p, t = icosphere(3)
     e = range_scan(p, t, viewpoint=(0, 0, 5), target=(0, 0, 0), resolution=(48, 48), seed=1,
@@ -356,7 +356,7 @@ def test_measure_corpus_counts_outliers_apart():
 
 
 def test_bench_mesh_on_the_corpus(tmp_path, capsys):
-    from fancloud_vtk.bench import CORPUS_COLUMNS
+    from fancloud_vtk.bench.mesh import CORPUS_COLUMNS
     from fancloud_vtk.cli import main as cli_main
 
     out = tmp_path / "bench"

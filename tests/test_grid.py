@@ -6,7 +6,7 @@ from scipy.spatial import cKDTree
 from shapes import density_jump, sphere
 
 from fancloud_vtk.core import _grid_kernels as G
-from fancloud_vtk.core.fans import _Grid
+from fancloud_vtk.core.fans import Grid
 
 
 def _clouds():
@@ -25,7 +25,7 @@ def _clouds():
 @pytest.mark.parametrize("name", sorted(_clouds()))
 def test_grid_knn_equals_kdtree(name):
     pts = _clouds()[name]
-    grid = _Grid(pts)
+    grid = Grid(pts)
     sp = grid.sorted_points
     assert np.array_equal(np.sort(grid.order), np.arange(len(pts)))
     np.testing.assert_array_equal(sp, pts[grid.order])
@@ -42,7 +42,7 @@ def test_grid_knn_equals_kdtree(name):
 
 def test_cells_hold_their_points_in_morton_order():
     pts = sphere(3000, seed=4)
-    grid = _Grid(pts)
+    grid = Grid(pts)
     inv_h = 1.0 / grid.h
     cell = np.floor((grid.sorted_points - grid.lo) * inv_h).astype(np.int64)
     owner = np.repeat(np.arange(grid.n_cells), np.diff(grid.start))

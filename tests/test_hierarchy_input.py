@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from shapes import sphere
 
-from fancloud_vtk import Hierarchy, build_fans, fan_cloud_of_mesh, hierarchy
+from fancloud_vtk import Hierarchy, build_fans, fan_cloud_of_mesh, hierarchy, load, save
 from fancloud_vtk.io import FileReadError
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -32,7 +32,7 @@ def saved(hier, tmp_path_factory):
 
 
 def _arrays(h):
-    return {k: v.copy() for k, v in h._arrays().items()}
+    return {k: v.copy() for k, v in h.arrays().items()}
 
 
 def _from(h, arrays, weights=None):
@@ -184,8 +184,9 @@ def test_load_refuses_bad_offsets_in_vtp(hier, tmp_path):
     log_off[len(log_off) // 2] = -10**6  # a view: changes the VTK array
     path = tmp_path / "bad.vtp"
     write_vtp(data, path)
-    with pytest.raises(ValueError, match="inconsistent hierarchy: log_off decreases"):
-        Hierarchy.load(path)
+    with pytest.raises(FileReadError, match="inconsistent hierarchy: log_off decreases") as info:
+        load(path)
+    assert str(path) in str(info.value)
 
 
 def test_corrupted_file_does_not_crash_level(saved, tmp_path):
@@ -261,15 +262,40 @@ def test_unreadable_npz_raises_file_read_error(saved, tmp_path, make):
     assert str(path) in str(info.value)
 
 
-@pytest.mark.parametrize("ext", [".npz", ".vtp"])
-def test_missing_file(tmp_path, ext):
+@pytest.mark.parametrize(("ext", "read"), [(".npz", Hierarchy.load), (".npz", load),
+                                           (".vtp", load)])
+def test_missing_file(tmp_path, ext, read):
     path = tmp_path / f"nothing{ext}"
     with pytest.raises(FileReadError, match="no such file") as info:
-        Hierarchy.load(path)
-    # a ValueError like every unreadable file, and a FileNotFoundError as FanCloud.load raises
+        read(path)
+    # a ValueError like every unreadable file, and a FileNotFoundError as read_vtp raises
     assert isinstance(info.value, ValueError)
     assert isinstance(info.value, FileNotFoundError)
     assert str(path) in str(info.value)
+
+
+@pytest.mark.parametrize("make", [_empty, _directory])
+def test_empty_or_directory_vtp_raises_file_read_error(tmp_path, make):
+    path = tmp_path / "h.vtp"
+    make(path, None)
+    with pytest.raises(FileReadError, match="empty|directory") as info:
+        load(path)
+    assert str(path) in str(info.value)
+
+
+def test_vtp_is_not_the_core_s_business(hier, tmp_path):
+    """The core writes and reads .npz only; .vtp (VTK) is fancloud_vtk.save / load."""
+    path = tmp_path / "h.vtp"
+    with pytest.raises(ValueError, match=r"fancloud_vtk\.save"):
+        hier.save(path)
+    assert not path.exists()
+    save(hier, path)
+    with pytest.raises(ValueError, match=r"fancloud_vtk\.load"):
+        Hierarchy.load(path)
+    with pytest.raises(ValueError, match=r"\.npz \(Hierarchy\.save\) or \.vtp"):
+        hier.save(tmp_path / "h.txt")
+    with pytest.raises(ValueError, match=r"\.npz \(Hierarchy\.load\) or \.vtp"):
+        Hierarchy.load(tmp_path / "h.txt")
 
 
 def test_truncated_npz_is_a_value_error(saved, tmp_path):

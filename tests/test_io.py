@@ -946,7 +946,7 @@ def test_bad_or_empty_stl_is_an_error_and_silent(tmp_path, capfd, content, reaso
 def test_stl_mesh_through_the_command(tmp_path, capsys):
     from vtkmodules.vtkFiltersSources import vtkSphereSource
 
-    from fancloud_vtk import FanCloud
+    from fancloud_vtk import load
     from fancloud_vtk.cli import main
 
     source = vtkSphereSource()
@@ -957,7 +957,7 @@ def test_stl_mesh_through_the_command(tmp_path, capsys):
     out = tmp_path / "fans.vtp"
     assert main(["fans", str(src), "-o", str(out), "--quiet"]) == 0
     assert capsys.readouterr().err == ""
-    fc = FanCloud.load(out)
+    fc = load(out)
     np.testing.assert_array_equal(fc.points, read_checked(src).points)
 
 

@@ -22,10 +22,10 @@ from vtkmodules.vtkIOXML import vtkXMLPolyDataReader, vtkXMLPolyDataWriter
 from fancloud_vtk import (
     Cancelled,
     DoubtfulMeshWarning,
-    FanCloud,
     FanCloudInputError,
     build_fans,
     fan_cloud_to_mesh,
+    load,
 )
 from fancloud_vtk.algorithms import FanCloudFilter, FanCloudMeshFilter, fancloud_to_vtk, run
 from fancloud_vtk.cli import main
@@ -411,7 +411,7 @@ def test_cli_mesh_of_a_fan_cloud_written_by_fans(xyz, tmp_path, capsys):
     args = ["mesh", str(fans), "-o", str(out), "--k", "8", "--no-close-holes", "-q"]
     assert main(args) == 0
     back = pv.read(out)
-    expected = fan_cloud_to_mesh(FanCloud.load(fans), close_holes=False)
+    expected = fan_cloud_to_mesh(load(fans), close_holes=False)
     np.testing.assert_array_equal(back.regular_faces, expected.triangles)
     assert back["mesh_holes_closed"][0] == 0
     assert capsys.readouterr().out == ""

@@ -8,7 +8,7 @@ from vtkmodules.util.numpy_support import vtk_to_numpy
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 from vtkmodules.vtkIOXML import vtkXMLPolyDataReader
 
-from fancloud_vtk import FanCloud, build_fans
+from fancloud_vtk import FanCloud, build_fans, from_vtk, load, save, to_vtk
 
 N = 2000
 
@@ -48,7 +48,7 @@ def assert_same_fancloud(a: FanCloud, b: FanCloud) -> None:
 
 
 def test_to_vtk_public_array_names_and_dtypes(cube_fc):
-    out = cube_fc.to_vtk()
+    out = to_vtk(cube_fc)
     assert isinstance(out, vtkPolyData)
     pd, fd = out.GetPointData(), out.GetFieldData()
     assert pd.GetNormals().GetName() == "Normals"  # also the active normals
@@ -70,7 +70,7 @@ def test_to_vtk_public_array_names_and_dtypes(cube_fc):
 
 
 def test_pyvista_view_of_the_contract(cube_fc):
-    mesh = pv.wrap(cube_fc.to_vtk())
+    mesh = pv.wrap(to_vtk(cube_fc))
     assert isinstance(mesh, pv.PolyData)
     assert mesh.n_points == N
     assert mesh.point_data["Normals"].dtype == np.float64
@@ -81,7 +81,7 @@ def test_pyvista_view_of_the_contract(cube_fc):
 
 
 def test_polys_are_the_distinct_fan_triangles(cube_fc):
-    mesh = pv.wrap(cube_fc.to_vtk())
+    mesh = pv.wrap(to_vtk(cube_fc))
     assert mesh.is_all_triangles
     faces = mesh.regular_faces
     np.testing.assert_array_equal(faces, cube_fc.triangles())
@@ -115,32 +115,32 @@ def test_fan_triangle_counts_and_summary(cube_fc):
 
 
 def test_round_trip_through_vtk_polydata(cube_fc):
-    assert_same_fancloud(cube_fc, FanCloud.from_vtk(cube_fc.to_vtk()))
+    assert_same_fancloud(cube_fc, from_vtk(to_vtk(cube_fc)))
 
 
 def test_round_trip_through_pyvista(cube_fc):
-    mesh = pv.wrap(cube_fc.to_vtk())
-    back = FanCloud.from_vtk(mesh)
+    mesh = pv.wrap(to_vtk(cube_fc))
+    back = from_vtk(mesh)
     assert_same_fancloud(cube_fc, back)
     assert_same_fancloud(cube_fc, mesh.fancloud.to_fancloud())
 
 
 def test_round_trip_through_vtp_file(cube_fc, tmp_path):
     path = tmp_path / "cube_fans.vtp"
-    cube_fc.save(path)
-    assert_same_fancloud(cube_fc, FanCloud.load(path))
-    assert_same_fancloud(cube_fc, FanCloud.load(str(path)))
+    save(cube_fc, path)
+    assert_same_fancloud(cube_fc, load(path))
+    assert_same_fancloud(cube_fc, load(str(path)))
     # any VTK reader sees the same contract
     reader = vtkXMLPolyDataReader()
     reader.SetFileName(str(path))
     reader.Update()
-    assert_same_fancloud(cube_fc, FanCloud.from_vtk(reader.GetOutput()))
-    assert_same_fancloud(cube_fc, FanCloud.from_vtk(pv.read(path)))
+    assert_same_fancloud(cube_fc, from_vtk(reader.GetOutput()))
+    assert_same_fancloud(cube_fc, from_vtk(pv.read(path)))
 
 
 def test_round_trip_copies_the_arrays(cube_fc):
-    poly = cube_fc.to_vtk()
-    back = FanCloud.from_vtk(poly)
+    poly = to_vtk(cube_fc)
+    back = from_vtk(poly)
     vtk_to_numpy(poly.GetFieldData().GetArray("fan_ring"))[:] = 0
     vtk_to_numpy(poly.GetPointData().GetArray("RGB"))[:] = 0
     assert_same_fancloud(cube_fc, back)
@@ -165,7 +165,7 @@ def test_round_trip_of_arrays_vtk_cannot_hold_as_they_are(cube_fc):
     big = rng.random(N).astype(">f8")
     tensor = rng.normal(size=(N, 3, 3))
     fc.point_data.update(flags=flags, half=half, big=big, tensor=tensor)
-    back = FanCloud.from_vtk(fc.to_vtk()).point_data
+    back = from_vtk(to_vtk(fc)).point_data
     assert back["flags"].dtype == np.uint8
     np.testing.assert_array_equal(back["flags"], flags)
     assert back["half"].dtype == np.float32
@@ -183,14 +183,14 @@ def test_point_array_vtk_cannot_store_is_a_clear_error(cube_fc, values):
     fc = cube_fc.copy()
     fc.point_data["odd"] = values
     with pytest.raises(TypeError, match="point array 'odd' has dtype"):
-        fc.to_vtk()
+        to_vtk(fc)
 
 
 def test_from_vtk_of_a_plain_cloud_names_the_missing_arrays(cube_fc):
     cloud = pv.PolyData(cube_fc.points)
     assert not cloud.fancloud.is_fan_cloud
     with pytest.raises(ValueError, match="fan_offsets, fan_ring, Normals, fan_open"):
-        FanCloud.from_vtk(cloud)
+        from_vtk(cloud)
     with pytest.raises(ValueError, match="not a fan cloud"):
         cloud.fancloud.to_fancloud()
 
@@ -204,41 +204,41 @@ def test_from_vtk_of_a_plain_cloud_names_the_missing_arrays(cube_fc):
     ],
 )
 def test_from_vtk_with_malformed_fan_arrays(cube_fc, name, values, match):
-    mesh = pv.wrap(cube_fc.to_vtk())
+    mesh = pv.wrap(to_vtk(cube_fc))
     mesh.point_data[name] = values
     with pytest.raises(ValueError, match=match):
-        FanCloud.from_vtk(mesh)
+        from_vtk(mesh)
 
 
 def test_from_vtk_with_inconsistent_ring_names_it(cube_fc):
-    mesh = pv.wrap(cube_fc.to_vtk())
+    mesh = pv.wrap(to_vtk(cube_fc))
     ring = mesh.field_data["fan_ring"].copy()
     ring[7] = N + 5
     mesh.field_data["fan_ring"] = ring
     with pytest.raises(ValueError, match="fan_ring entry 7 is 2005, out of range for 2000"):
-        FanCloud.from_vtk(mesh)
+        from_vtk(mesh)
 
 
 def test_save_and_load_errors_name_the_problem(cube_fc, tmp_path):
     with pytest.raises(FileNotFoundError, match="no such directory"):
-        cube_fc.save(tmp_path / "missing" / "x.vtp")
+        save(cube_fc, tmp_path / "missing" / "x.vtp")
     with pytest.raises(FileNotFoundError, match="no such file"):
-        FanCloud.load(tmp_path / "absent.vtp")
+        load(tmp_path / "absent.vtp")
     path = tmp_path / "fans.vtp"
-    cube_fc.save(path)
+    save(cube_fc, path)
     truncated = tmp_path / "truncated.vtp"
     truncated.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
     with pytest.raises(ValueError, match="could not read .*truncated.vtp: ") as info:
-        FanCloud.load(truncated)
+        load(truncated)
     assert "ErrorEvent" not in str(info.value)
     garbage = tmp_path / "garbage.vtp"
     garbage.write_bytes(b"\x00\x01 definitely not XML " * 20)
     with pytest.raises(ValueError, match="could not read .*garbage.vtp"):
-        FanCloud.load(garbage)
+        load(garbage)
     plain = tmp_path / "plain.vtp"
     pv.PolyData(cube_fc.points).save(plain)
     with pytest.raises(ValueError, match="not a fan cloud"):
-        FanCloud.load(plain)
+        load(plain)
 
 
 # -- validation -----------------------------------------------------------------------
@@ -315,4 +315,4 @@ def test_empty_fan_cloud_is_valid_and_converts():
                   np.empty((0, 3)), np.empty(0, bool))
     assert fc.n_points == 0 and len(fc.triangles()) == 0
     assert fc.summary()["distinct_triangles_per_point"] == 0.0
-    assert_same_fancloud(fc, FanCloud.from_vtk(fc.to_vtk()))
+    assert_same_fancloud(fc, from_vtk(to_vtk(fc)))

@@ -6,7 +6,7 @@ import pyvista as pv
 from conftest import dataset_fingerprint
 from shapes import sphere
 
-from fancloud_vtk import Hierarchy, build_fans, reduce
+from fancloud_vtk import Hierarchy, build_fans, reduce, save
 from fancloud_vtk.algorithms import (
     FanCloudEntropyFilter,
     FanCloudReduceFilter,
@@ -197,7 +197,7 @@ def test_cli_reduce_and_entropy(points, tmp_path, capsys):
     p, rgb = points
     fc = build_fans(p, point_data={"RGB": rgb})
     src = tmp_path / "in.vtp"
-    fc.save(src)
+    save(fc, src)
     out = tmp_path / "small.vtp"
     assert main(["reduce", str(src), "-o", str(out), "--n", "800", "--weights", "1,1,50,1",
                  "-q"]) == 0
@@ -216,7 +216,7 @@ def test_cli_reduce_and_entropy(points, tmp_path, capsys):
 def test_cli_selective_is_the_filter(points, tmp_path, capsys):
     p, rgb = points
     src = tmp_path / "in.vtp"
-    build_fans(p, point_data={"RGB": rgb}).save(src)
+    save(build_fans(p, point_data={"RGB": rgb}), src)
     out = tmp_path / "sel.vtp"
     region = {"keep": 0.2, "region_center": (0, 0, 1), "region_radius": 0.6,
               "smooth_iterations": 1}
@@ -257,7 +257,7 @@ def test_cli_selective_is_the_filter(points, tmp_path, capsys):
 )
 def test_cli_bad_input(points, tmp_path, capsys, args, message):
     src = tmp_path / "in.vtp"
-    build_fans(points[0]).save(src)
+    save(build_fans(points[0]), src)
     with pytest.raises(SystemExit) if "comma" in message else _no_raise():
         code = main(["reduce", str(src), "-o", str(tmp_path / "o.vtp"), *args])
         assert code == 2

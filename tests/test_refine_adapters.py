@@ -6,7 +6,7 @@ import pyvista as pv
 from conftest import dataset_fingerprint
 from shapes import sphere
 
-from fancloud_vtk import build_fans, refine
+from fancloud_vtk import build_fans, refine, save
 from fancloud_vtk.algorithms import FanCloudRefineFilter, fancloud_from_vtk, run
 from fancloud_vtk.cli import main
 
@@ -89,7 +89,7 @@ def test_accessor_checks_keywords(points):
 def test_cli_refine(points, tmp_path, capsys):
     p, rgb = points
     src = tmp_path / "in.vtp"
-    build_fans(p, point_data={"RGB": rgb}).save(src)
+    save(build_fans(p, point_data={"RGB": rgb}), src)
     out = tmp_path / "fine.vtp"
     assert main(["refine", str(src), "-o", str(out), "--factor", "2", "-q"]) == 0
     fine = pv.read(out)
@@ -112,14 +112,14 @@ def test_cli_refine(points, tmp_path, capsys):
 )
 def test_cli_bad_input(points, tmp_path, capsys, args, message):
     src = tmp_path / "in.vtp"
-    build_fans(points[0]).save(src)
+    save(build_fans(points[0]), src)
     assert main(["refine", str(src), "-o", str(tmp_path / "o.vtp"), *args]) == 2
     assert message in capsys.readouterr().err
 
 
 def test_cli_needs_an_amount(points, tmp_path, capsys):
     src = tmp_path / "in.vtp"
-    build_fans(points[0]).save(src)
+    save(build_fans(points[0]), src)
     with pytest.raises(SystemExit):
         main(["refine", str(src), "-o", str(tmp_path / "o.vtp")])
     assert "--factor" in capsys.readouterr().err

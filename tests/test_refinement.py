@@ -13,8 +13,11 @@ from fancloud_vtk import (
     fan_cloud_of_mesh,
     fan_cloud_to_mesh,
     hierarchy,
+    load,
     reduce,
     refine,
+    refine_hierarchy,
+    save,
 )
 from fancloud_vtk.core.reduction import laplacian_smooth
 
@@ -116,7 +119,7 @@ def _volume(mesh):
 
 def test_ten_reduction_refinement_cycles_keep_the_bunny(bunny):
     """Figure 12: 100% -> 50% -> 100% ten times, without stored detail."""
-    from fancloud_vtk._bench_peers import MeshDistance, surface_distance
+    from fancloud_vtk.bench.metrics import MeshDistance, surface_distance
 
     p, f, _ = bunny
     used = np.unique(f)
@@ -195,9 +198,9 @@ def test_refined_points_enter_the_hierarchy(sphere_fans):
     assert (mid.point_data["original_id"] == -1).sum() == 1000
 
 
-def test_hierarchy_refine_goes_above_the_input(sphere_fans):
+def test_refine_hierarchy_goes_above_the_input(sphere_fans):
     h = hierarchy(sphere_fans, 500)
-    up = h.refine(factor=2)
+    up = refine_hierarchy(h, factor=2)
     assert (up.n_min, up.n_points) == (500, 4000)
     for m in (500, 1200, 2000):
         a, b = h.level(m), up.level(m)
@@ -220,15 +223,29 @@ def test_hierarchy_refine_goes_above_the_input(sphere_fans):
 
 @pytest.mark.parametrize("suffix", [".npz", ".vtp"])
 def test_refined_hierarchy_saves_and_loads(sphere_fans, tmp_path, suffix):
-    h = hierarchy(sphere_fans, 1000).refine(factor=1.5)
+    h = refine_hierarchy(hierarchy(sphere_fans, 1000), factor=1.5)
     path = tmp_path / f"h{suffix}"
-    h.save(path)
-    back = Hierarchy.load(path)
+    save(h, path)
+    back = load(path)
+    assert isinstance(back, Hierarchy)
+    if suffix == ".npz":
+        assert Hierarchy.load(path).n_points == back.n_points
     for m in (1000, 2500, 3000):
         a, b = h.level(m), back.level(m)
         np.testing.assert_array_equal(a.points, b.points)
         np.testing.assert_array_equal(a.ring, b.ring)
         np.testing.assert_array_equal(a.point_data["original_id"], b.point_data["original_id"])
+
+
+def test_refine_hierarchy_refuses_what_it_cannot_take(sphere_fans):
+    with pytest.raises(TypeError, match="refine_hierarchy needs a Hierarchy, got FanCloud"):
+        refine_hierarchy(sphere_fans, factor=2)
+    h = hierarchy(sphere_fans, 1000)
+    with pytest.raises(TypeError, match="always returns a Hierarchy"):
+        refine_hierarchy(h, factor=2, return_hierarchy=False)
+    with pytest.raises(ValueError, match="factor must be a number > 1"):
+        refine_hierarchy(h, factor=0.5)
+    assert not hasattr(Hierarchy, "refine")  # the refinement owns it: no import cycle
 
 
 # -- bad input ----------------------------------------------------------------------------

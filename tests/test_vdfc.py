@@ -384,7 +384,7 @@ def test_superfluous_triangles_go_and_leave_one_cover(forest):
     assert left == 0
     # every point still has a triangle, and no place of the terrain loses its cover
     assert len(np.unique(lean.triangles)) == len(np.unique(plain.triangles))
-    from fancloud_vtk.bench_vdfc import _surface_errors
+    from fancloud_vtk.bench.vdfc import _surface_errors
 
     fine = np.zeros((4 * N, 4 * N))  # samples 4 x finer than the grid (heights unused)
     everywhere = np.ones(fine.shape, bool)

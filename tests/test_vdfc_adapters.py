@@ -5,7 +5,7 @@ import pytest
 import pyvista as pv
 from vtkmodules.vtkRenderingCore import vtkCamera, vtkRenderer, vtkRenderWindow
 
-from fancloud_vtk import ViewDependentFanCloud, terrain_fan_cloud
+from fancloud_vtk import ViewDependentFanCloud, terrain_fan_cloud, to_vtk
 from fancloud_vtk.accessor import PyVistaViewDependentFanCloud
 from fancloud_vtk.algorithms import FanCloudViewDependentFilter, flythrough, follow_camera, run
 from fancloud_vtk.algorithms.vdfc import height_field_of_image, image_of_heights
@@ -87,7 +87,7 @@ def test_filter_inputs_and_errors(tmp_path):
     fc = terrain_fan_cloud(_heights(), spacing=0.1)
     cam = ((2.5, -3.0, 2.5), (2.5, 2.5, 0.0), (0, 0, 1), 40.0)
     alg = FanCloudViewDependentFilter(e_max=0.02)
-    alg.SetInputDataObject(fc.to_vtk())
+    alg.SetInputDataObject(to_vtk(fc))
     with pytest.raises(ValueError, match="no camera"):
         run(alg)
     alg.SetCamera(cam)

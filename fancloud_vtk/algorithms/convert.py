@@ -13,6 +13,12 @@ The fan cloud as ``vtkPolyData`` (public contract, see docs/data_model.md):
   (bool arrays as uint8, float16 as float32, arrays of more than two axes
   flattened to ``(n, components)``: VTK has no such arrays);
 * field arrays ``fan_offsets`` and ``fan_ring`` (int64, CSR rings).
+
+This is the one place where the core's objects meet VTK (the core never
+imports VTK): :func:`to_vtk` and :func:`from_vtk` convert a ``FanCloud``,
+``Hierarchy``, ``TriangleMesh`` or view-dependent ``Front``, :func:`save` and
+:func:`load` write and read their files (exported as ``fancloud_vtk.to_vtk``,
+``fancloud_vtk.from_vtk``, ``fancloud_vtk.save``, ``fancloud_vtk.load``).
 """
 
 from __future__ import annotations
@@ -27,8 +33,12 @@ from vtkmodules.vtkCommonCore import VTK_FLOAT, VTK_UNSIGNED_CHAR, vtkCommand, v
 from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
 
 from fancloud_vtk.core.entropy import UNREFERENCED_DROPPED
+from fancloud_vtk.core.hierarchy import HIERARCHY_ARRAYS, ORIGINAL_ID, Hierarchy
 from fancloud_vtk.core.mesh import TriangleMesh
 from fancloud_vtk.core.model import COLOR_NAMES, FanCloud
+from fancloud_vtk.core.validation import FileReadError, readable_file
+from fancloud_vtk.core.vdfc import Front
+from fancloud_vtk.core.verbs import Result, Source
 
 NORMALS = "Normals"
 FAN_OPEN = "fan_open"
@@ -399,7 +409,6 @@ def _ply_ready(polydata, writer):
 
 #: field array (a string) saying which kind of input a filter took
 INPUT_KIND = "fancloud_input"
-KIND_FANS, KIND_MESH, KIND_POINTS = "fan cloud", "triangle mesh", "point set"
 
 
 def triangles_of(dataset) -> np.ndarray | None:
@@ -442,92 +451,57 @@ def triangles_of(dataset) -> np.ndarray | None:
     return np.array(conn, dtype=np.int64).reshape(-1, 3)
 
 
-def input_fan_cloud(dataset, fan_values: dict, progress=None, *,
-                    keep_unreferenced: bool = False) -> tuple[FanCloud, str]:
-    """The fan cloud of a filter's input and which kind of input it was.
+def source_of(dataset) -> Source:
+    """A filter's input as the verbs' :class:`~fancloud_vtk.core.verbs.Source`.
 
-    * a fan cloud (``fan_offsets``/``fan_ring`` arrays): its rings as they are;
+    * a fan cloud (``fan_offsets``/``fan_ring`` arrays): its fan cloud;
     * a triangle mesh (polys or strips of a polydata, 2-d cells of an
-      unstructured grid: :func:`triangles_of`): every vertex's one-ring is its
-      fan, its ``Normals`` point array (if any) the normals; the vertices that
-      no triangle uses are dropped unless ``keep_unreferenced``;
-    * any other point set: the fans are built with ``fan_values``.
-
-    See :func:`fan_cloud_of_arrays`, which the ``fancloud`` command calls on
-    the arrays of a file.
+      unstructured grid: :func:`triangles_of`): its points, ``Normals`` point
+      array, other point arrays and triangles;
+    * any other point set: its points and point arrays.
     """
     if is_fancloud(dataset):
-        return fancloud_from_vtk(dataset), KIND_FANS
-    return fan_cloud_of_arrays(*_input_arrays(dataset), fan_values, progress,
-                               keep_unreferenced=keep_unreferenced)
-
-
-def point_fans(dataset, fan_values: dict, progress=None, *,
-               keep_unreferenced: bool = False) -> FanCloud:
-    """The fans built from the points of a filter's input (``FanCloudFilter``,
-    ``FanCloudMeshFilter``), with ``fan_values``: :func:`fans_of_points`."""
-    return fans_of_points(*_input_arrays(dataset), fan_values, progress,
-                          keep_unreferenced=keep_unreferenced)
-
-
-def fan_cloud_of_arrays(points, normals, point_data, triangles, fan_values: dict,
-                        progress=None, *, keep_unreferenced: bool = False
-                        ) -> tuple[FanCloud, str]:
-    """The fan cloud of an input that is not a fan cloud, from its arrays, and its kind.
-
-    With ``triangles`` (a triangle mesh) every vertex's one-ring is its fan
-    (:func:`~fancloud_vtk.core.entropy.fan_cloud_of_mesh`: the vertices that
-    no triangle uses are dropped unless ``keep_unreferenced``; ``normals``
-    with a zero vector count as unknown); without, the fans of the points are
-    built with ``fan_values``.
-    """
-    from fancloud_vtk.core.entropy import fan_cloud_of_mesh
-
-    if triangles is None:
-        return _built_fans(points, normals, point_data, fan_values, progress), KIND_POINTS
-    if normals is not None and not (np.linalg.norm(normals, axis=1) > 0).all():
-        normals = None  # "unknown" zero normals: take the mesh's own
-    return fan_cloud_of_mesh(points, triangles, normals=normals, point_data=point_data,
-                             keep_unreferenced=keep_unreferenced), KIND_MESH
-
-
-def fans_of_points(points, normals, point_data, triangles, fan_values: dict, progress=None,
-                   *, keep_unreferenced: bool = False) -> FanCloud:
-    """The fans built from an input's points with ``fan_values``, its cells unused but for
-    one thing: of a triangle mesh (``triangles`` given) only the vertices of its triangles
-    are taken, unless ``keep_unreferenced``
-    (:func:`~fancloud_vtk.core.entropy.drop_unreferenced`: a warning, the point array
-    ``original_id``, the count in ``info["unreferenced_dropped"]``)."""
-    from fancloud_vtk.core.entropy import drop_unreferenced
-
-    if triangles is None:
-        return _built_fans(points, normals, point_data, fan_values, progress)
-    mesh = drop_unreferenced(points, triangles, normals, point_data,
-                             keep_unreferenced=keep_unreferenced, stacklevel=2)
-    fc = _built_fans(mesh.points, mesh.normals, mesh.point_data, fan_values, progress)
-    fc.info[UNREFERENCED_DROPPED] = mesh.dropped
-    return fc
-
-
-def _input_arrays(dataset):
-    """(points, normals or None, the other point arrays, triangles or None) of an input."""
-    points = points_of(dataset)
+        return Source(fancloud=fancloud_from_vtk(dataset))
     arrays = point_arrays(dataset)
     normals = pop_normals(arrays)
-    return points, normals, arrays, triangles_of(dataset)
+    return Source(points=points_of(dataset), normals=normals, point_data=arrays,
+                  triangles=triangles_of(dataset))
 
 
-def _built_fans(points, normals, arrays, fan_values, progress) -> FanCloud:
-    from fancloud_vtk.core.fans import build_fans
+def source_to_vtk(source: Source) -> vtkPolyData:
+    """The points, triangles (if any), ``Normals`` (if any) and point arrays of a verb's
+    input of arrays as ``vtkPolyData`` (the mesh a file holds, for the ``fancloud``
+    command)."""
+    out = vtkPolyData()
+    out.SetPoints(numpy_points(source.points))
+    if source.triangles is not None:
+        out.SetPolys(triangle_cells(source.triangles))
+    pd = out.GetPointData()
+    for name, arr in source.point_data.items():
+        pd.AddArray(_to_vtk_array(np.asarray(arr), name))
+    if source.normals is not None:
+        pd.SetNormals(_to_vtk_array(np.asarray(source.normals), NORMALS))
+    return out
 
-    return build_fans(points, normals=normals, point_data=arrays, progress=progress,
-                      **fan_values)
+
+def result_to_vtk(result: Result, mark: bool = True) -> vtkPolyData:
+    """A verb's output as ``vtkPolyData``: its mesh if it has one, else its fan cloud,
+    with the field arrays that tell the input (:func:`mark_input`; without ``mark`` only
+    ``unreferenced_dropped``)."""
+    out = mesh_to_vtk(result.mesh) if result.mesh is not None else \
+        fancloud_to_vtk(result.fancloud)
+    if mark:
+        mark_input(out, result.kind, result.source)
+    else:
+        add_unreferenced_field(out, result.unreferenced_dropped)
+    return out
 
 
 def mark_input(dataset, kind: str, source: FanCloud) -> None:
     """The field arrays of a filter's output that tell its input: ``fancloud_input`` (the
-    kind, :func:`input_fan_cloud`) and, for a triangle mesh, ``unreferenced_dropped``
-    (:func:`add_unreferenced_field`; ``source`` is the input's fan cloud)."""
+    kind, :attr:`~fancloud_vtk.core.verbs.Result.kind`) and, for a triangle mesh,
+    ``unreferenced_dropped`` (:func:`add_unreferenced_field`; ``source`` is the input's fan
+    cloud)."""
     add_string_field(dataset, INPUT_KIND, kind)
     add_unreferenced_field(dataset, source.info.get(UNREFERENCED_DROPPED))
 
@@ -561,7 +535,7 @@ def hierarchy_to_vtk(h) -> vtkPolyData:
     weights and the method."""
     out = fancloud_to_vtk(h.source)
     fd = out.GetFieldData()
-    for name, arr in h._arrays().items():
+    for name, arr in h.arrays().items():
         arr = np.asarray(arr)
         if arr.dtype == np.bool_:
             arr = arr.astype(np.uint8)
@@ -572,13 +546,11 @@ def hierarchy_to_vtk(h) -> vtkPolyData:
     return out
 
 
-def hierarchy_from_vtk(dataset):
+def hierarchy_from_vtk(dataset) -> Hierarchy:
     """A :class:`~fancloud_vtk.Hierarchy` from ``vtkPolyData`` made by :func:`hierarchy_to_vtk`."""
-    from fancloud_vtk.core.reduction import _HIER_ARRAYS, Hierarchy
-
     fd = dataset.GetFieldData()
     arrays = {}
-    for name in (*_HIER_ARRAYS, "weights"):
+    for name in (*HIERARCHY_ARRAYS, "weights"):
         arr = fd.GetArray(HIERARCHY_PREFIX + name)
         if arr is None:
             raise ValueError(f"not a saved hierarchy: no field array {HIERARCHY_PREFIX}{name}")
@@ -590,8 +562,269 @@ def hierarchy_from_vtk(dataset):
         arrays[name] = arrays[name].astype(bool)
     weights = tuple(arrays.pop("weights").tolist())
     fc = fancloud_from_vtk(dataset)
-    fc.point_data.pop(ORIGINAL_ID_NAME, None)
+    fc.point_data.pop(ORIGINAL_ID, None)
     return Hierarchy.from_arrays(fc, arrays, weights, method)
 
 
-ORIGINAL_ID_NAME = "original_id"
+def is_hierarchy(dataset) -> bool:
+    """True if the dataset carries the marker :func:`hierarchy_to_vtk` writes (the field
+    array ``hierarchy_method``, or any other ``hierarchy_<name>`` array)."""
+    fd = dataset.GetFieldData()
+    return any((fd.GetArrayName(i) or "").startswith(HIERARCHY_PREFIX)
+               for i in range(fd.GetNumberOfArrays()))
+
+
+# -- the objects of the core as VTK data and files -----------------------------------
+
+
+def to_vtk(obj) -> vtkPolyData:
+    """A core object as a new ``vtkPolyData``.
+
+    Parameters
+    ----------
+    obj : FanCloud, Hierarchy, TriangleMesh or Front
+        * a :class:`~fancloud_vtk.FanCloud`: points, its distinct fan
+          triangles, ``Normals``, ``fan_open``, ``fan_rotated``, the point
+          arrays and the field arrays ``fan_offsets`` / ``fan_ring`` (the
+          contract of docs/data_model.md; :func:`fancloud_to_vtk`);
+        * a :class:`~fancloud_vtk.Hierarchy`: its finest fan cloud so, plus
+          the field arrays ``hierarchy_<name>`` (:func:`hierarchy_to_vtk`);
+        * a view-dependent front (``ViewDependentFanCloud.front_arrays``):
+          its points, triangles, ``Normals`` and point arrays
+          (:func:`front_to_vtk`);
+        * a :class:`~fancloud_vtk.TriangleMesh`: all its points, its
+          triangles, ``Normals``, point arrays and its statistics as field
+          arrays ``mesh_<name>`` (:func:`mesh_to_vtk`).
+
+    Returns
+    -------
+    vtkPolyData
+        A deep copy: changing it does not change ``obj``. For PyVista:
+        ``pyvista.wrap(to_vtk(obj))``.
+
+    Raises
+    ------
+    TypeError
+        ``obj`` is none of these, or has a point array VTK cannot store
+        (complex numbers, strings, Python objects).
+
+    See Also
+    --------
+    from_vtk : the way back (fan clouds and hierarchies).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fancloud_vtk import build_fans, fan_cloud_to_mesh, to_vtk
+    >>> rng = np.random.default_rng(0)
+    >>> p = rng.normal(size=(500, 3))
+    >>> p /= np.linalg.norm(p, axis=1)[:, None]
+    >>> fc = build_fans(p)
+    >>> poly = to_vtk(fc)
+    >>> poly.GetNumberOfPoints(), poly.GetFieldData().GetArray("fan_ring") is not None
+    (500, True)
+    >>> mesh = fan_cloud_to_mesh(fc)
+    >>> to_vtk(mesh).GetNumberOfCells() == mesh.n_triangles
+    True
+    """
+    if isinstance(obj, FanCloud):
+        return fancloud_to_vtk(obj)
+    if isinstance(obj, Hierarchy):
+        return hierarchy_to_vtk(obj)
+    if isinstance(obj, Front):
+        return front_to_vtk(obj)
+    if isinstance(obj, TriangleMesh):
+        return mesh_to_vtk(obj)
+    raise TypeError(f"to_vtk converts a FanCloud, Hierarchy, TriangleMesh or Front, got "
+                    f"{type(obj).__name__}")
+
+
+def from_vtk(dataset) -> FanCloud | Hierarchy:
+    """The fan cloud (or hierarchy) that a VTK dataset carries.
+
+    Parameters
+    ----------
+    dataset : vtkPolyData or pyvista.PolyData
+        A dataset made by :func:`to_vtk` (or by a fan cloud filter, or read
+        from a ``.vtp`` file they wrote): the fan cloud arrays of
+        docs/data_model.md, and for a hierarchy the field arrays
+        ``hierarchy_<name>``.
+
+    Returns
+    -------
+    FanCloud or Hierarchy
+        A :class:`~fancloud_vtk.Hierarchy` when the dataset carries the
+        hierarchy arrays (:func:`is_hierarchy`), else a
+        :class:`~fancloud_vtk.FanCloud`; its arrays are copies.
+
+    Raises
+    ------
+    TypeError
+        ``dataset`` is not a VTK point set.
+    ValueError
+        It is not a fan cloud (naming the missing arrays), or its arrays are
+        inconsistent (naming the array; ``inconsistent hierarchy: ...`` for
+        a hierarchy).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fancloud_vtk import build_fans, from_vtk, to_vtk
+    >>> rng = np.random.default_rng(0)
+    >>> p = rng.normal(size=(500, 3))
+    >>> p /= np.linalg.norm(p, axis=1)[:, None]
+    >>> fc = build_fans(p)
+    >>> back = from_vtk(to_vtk(fc))
+    >>> type(back).__name__, bool(np.array_equal(back.ring, fc.ring))
+    ('FanCloud', True)
+    """
+    if dataset is None or not hasattr(dataset, "IsA") or not dataset.IsA("vtkPointSet"):
+        kind = type(dataset).__name__ if not hasattr(dataset, "GetClassName") \
+            else dataset.GetClassName()
+        raise TypeError(f"from_vtk needs a vtkPolyData (or pyvista.PolyData), got {kind}")
+    if is_hierarchy(dataset):
+        return hierarchy_from_vtk(dataset)
+    return fancloud_from_vtk(dataset)
+
+
+def _path_of(path) -> str:
+    path = os.fspath(path)
+    return os.fsdecode(path) if isinstance(path, bytes) else path
+
+
+def save(obj, path) -> None:
+    """Write a fan cloud, a hierarchy or a triangle mesh to a file.
+
+    Parameters
+    ----------
+    obj : FanCloud, Hierarchy or TriangleMesh
+        * a :class:`~fancloud_vtk.FanCloud`: ``.vtp`` (binary XML; every
+          array of :func:`to_vtk`, so :func:`load` gives identical arrays
+          back);
+        * a :class:`~fancloud_vtk.Hierarchy`: ``.vtp`` (its finest fan
+          cloud plus the field arrays ``hierarchy_<name>``) or ``.npz``
+          (numpy, no pickle: :meth:`Hierarchy.save
+          <fancloud_vtk.Hierarchy.save>`, no VTK needed);
+        * a :class:`~fancloud_vtk.TriangleMesh` (a view-dependent front
+          too): any format of :func:`write_mesh` (``.vtp``, ``.ply``,
+          ``.obj``, ``.stl``, ``.vtk``).
+    path : str or os.PathLike
+        The file; its extension chooses the format.
+
+    Raises
+    ------
+    TypeError
+        ``obj`` is none of these (a ``ViewDependentFanCloud`` saves itself:
+        ``vd.save(path)``), or has a point array VTK cannot store.
+    ValueError
+        An extension the object cannot be written as (a fan cloud needs
+        ``.vtp``: ``fan_cloud_to_mesh`` makes a mesh of it for the other
+        formats).
+    OSError
+        Writing failed: a ``FileNotFoundError`` for a missing directory,
+        an ``IsADirectoryError`` when ``path`` is one, naming the path.
+
+    See Also
+    --------
+    load : the way back (fan clouds and hierarchies).
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> from fancloud_vtk import build_fans, load, save
+    >>> rng = np.random.default_rng(0)
+    >>> p = rng.normal(size=(500, 3))
+    >>> p /= np.linalg.norm(p, axis=1)[:, None]
+    >>> fc = build_fans(p)
+    >>> path = os.path.join(tempfile.mkdtemp(), "sphere_fans.vtp")
+    >>> save(fc, path)
+    >>> bool(np.array_equal(load(path).ring, fc.ring))
+    True
+    """
+    path = _path_of(path)
+    ext = os.path.splitext(path)[1].lower()
+    if isinstance(obj, Hierarchy):
+        if ext == ".npz":
+            folder = os.path.dirname(os.path.abspath(path))
+            if not os.path.isdir(folder):
+                raise FileNotFoundError(f"could not write {path}: no such directory {folder}")
+            obj.save(path)
+        elif ext == ".vtp":
+            write_vtp(hierarchy_to_vtk(obj), path)
+        else:
+            raise ValueError(f"a hierarchy is saved as .vtp or .npz, got {path!r}")
+    elif isinstance(obj, FanCloud):
+        if ext != ".vtp":
+            raise ValueError(f"a fan cloud is saved as .vtp (only it keeps the fans), got "
+                             f"{path!r}; for a mesh file save fan_cloud_to_mesh(fancloud)")
+        write_vtp(fancloud_to_vtk(obj), path)
+    elif isinstance(obj, TriangleMesh):
+        write_mesh(to_vtk(obj), path)
+    else:
+        hint = " (it saves itself: .save(path), .npz)" if hasattr(obj, "front_arrays") else ""
+        raise TypeError(f"save writes a FanCloud, Hierarchy or TriangleMesh, got "
+                        f"{type(obj).__name__}{hint}")
+
+
+def load(path) -> FanCloud | Hierarchy:
+    """Read a fan cloud or a hierarchy written by :func:`save`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A ``.vtp`` file (a fan cloud, or a hierarchy when it carries the
+        ``hierarchy_<name>`` arrays: :func:`from_vtk`) or a ``.npz`` file (a
+        hierarchy: :meth:`Hierarchy.load <fancloud_vtk.Hierarchy.load>`).
+
+    Returns
+    -------
+    FanCloud or Hierarchy
+
+    Raises
+    ------
+    ValueError
+        Another extension (point clouds and meshes of other formats:
+        :func:`fancloud_vtk.io.read_point_cloud`).
+    fancloud_vtk.io.FileReadError
+        (a ``ValueError``) naming the path: the file is missing (then also a
+        ``FileNotFoundError``), a directory or empty; it holds no fan cloud
+        (``not a fan cloud: ...``, naming the missing arrays) or its arrays
+        are inconsistent; for ``.npz``, every problem of
+        :meth:`Hierarchy.load <fancloud_vtk.Hierarchy.load>`.
+    ValueError
+        A damaged ``.vtp`` (``could not read <path>: <VTK's reason>``, as
+        :func:`read_vtp` raises).
+
+    See Also
+    --------
+    save : writes these files.
+
+    Examples
+    --------
+    >>> import os, tempfile
+    >>> import numpy as np
+    >>> from fancloud_vtk import build_fans, hierarchy, load, save
+    >>> rng = np.random.default_rng(0)
+    >>> p = rng.normal(size=(2000, 3))
+    >>> p /= np.linalg.norm(p, axis=1)[:, None]
+    >>> h = hierarchy(build_fans(p), 300)
+    >>> path = os.path.join(tempfile.mkdtemp(), "sphere_lod.vtp")
+    >>> save(h, path)
+    >>> back = load(path)
+    >>> type(back).__name__, bool(np.array_equal(back.level(700).points, h.level(700).points))
+    ('Hierarchy', True)
+    """
+    path = _path_of(path)
+    lower = path.lower()
+    if lower.endswith(".npz"):
+        return Hierarchy.load(path)
+    if not lower.endswith(".vtp"):
+        raise ValueError(f"load reads a fan cloud or a hierarchy from .vtp (a hierarchy also "
+                         f"from .npz), got {path!r}; point clouds and meshes: "
+                         "fancloud_vtk.io.read_point_cloud")
+    data = read_vtp(readable_file(path))
+    try:
+        return from_vtk(data)
+    except ValueError as exc:
+        raise FileReadError(path, str(exc)) from exc

@@ -4,25 +4,14 @@ from __future__ import annotations
 
 from vtkmodules.vtkCommonDataModel import vtkPolyData
 
-from fancloud_vtk.core.entropy import entropy
-from fancloud_vtk.params import ENTROPY_PARAMS, FAN_PARAMS, INPUT_PARAMS
+from fancloud_vtk.core import verbs
+from fancloud_vtk.params import VERB_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
-from .convert import (
-    KIND_POINTS,
-    _to_vtk_array,
-    fancloud_to_vtk,
-    input_fan_cloud,
-    mark_input,
-)
+from .convert import _to_vtk_array, fancloud_to_vtk, mark_input, source_of
 
 
-def fan_values(values: dict) -> dict:
-    """The fan parameters (the keywords of ``build_fans``) among a filter's values."""
-    return {p.name: values[p.name] for p in FAN_PARAMS}
-
-
-@with_parameters(FAN_PARAMS + INPUT_PARAMS + ENTROPY_PARAMS)
+@with_parameters(VERB_PARAMS["entropy"])
 class FanCloudEntropyFilter(FanCloudAlgorithm):
     """The entropy of every point and its four terms, as point arrays.
 
@@ -54,28 +43,32 @@ class FanCloudEntropyFilter(FanCloudAlgorithm):
         super().__init__(inputType="vtkPointSet", outputType="vtkPolyData", **params)
 
     def execute(self, dataset):
-        values = self.parameters
-        fc, kind = input_fan_cloud(dataset, fan_values(values),
-                                   lambda f, m: self._progress(0.8 * f, m),
-                                   keep_unreferenced=values["keep_unreferenced"])
-        ent = entropy(fc, values["weights"], colors=values["color_array"] or None)
-        if (kind == KIND_POINTS or not dataset.IsA("vtkPolyData")
-                or fc.n_points != dataset.GetNumberOfPoints()):
-            # a point set, a grid, or a mesh whose unreferenced vertices were dropped
-            out = fancloud_to_vtk(fc)
-        else:
-            out = vtkPolyData()
-            out.ShallowCopy(dataset)
-            # new point and field data objects: the input's stay untouched
-            pd = out.GetPointData().NewInstance()
-            pd.ShallowCopy(dataset.GetPointData())
-            out.GetPointData().ShallowCopy(pd)
-            fd = out.GetFieldData().NewInstance()
-            fd.ShallowCopy(dataset.GetFieldData())
-            out.SetFieldData(fd)
-        for name, arr in ent.as_dict().items():
-            out.GetPointData().AddArray(_to_vtk_array(arr, name))
-        out.GetPointData().SetActiveScalars("entropy")
-        mark_input(out, kind, fc)
-        self._progress(1.0, "done")
-        return out
+        result = verbs.entropy(source_of(dataset), self.parameters, self._progress)
+        keeps_input = (result.kind != verbs.KIND_POINTS and dataset.IsA("vtkPolyData")
+                       and result.source.n_points == dataset.GetNumberOfPoints())
+        return entropy_output(result, dataset if keeps_input else None)
+
+
+def entropy_output(result: verbs.Result, dataset=None) -> vtkPolyData:
+    """The entropy verb's output: ``dataset`` (the input polydata, when its points are the
+    fan cloud's: not a point set, no vertex dropped) with the arrays ``entropy``,
+    ``entropy_dist``, ... added (the input is not modified), else the fan cloud with them.
+    The filter and ``fancloud entropy`` (the file's mesh as ``dataset``) both give this."""
+    if dataset is None:
+        # a point set, a grid, or a mesh whose unreferenced vertices were dropped
+        out = fancloud_to_vtk(result.source)
+    else:
+        out = vtkPolyData()
+        out.ShallowCopy(dataset)
+        # new point and field data objects: the input's stay untouched
+        pd = out.GetPointData().NewInstance()
+        pd.ShallowCopy(dataset.GetPointData())
+        out.GetPointData().ShallowCopy(pd)
+        fd = out.GetFieldData().NewInstance()
+        fd.ShallowCopy(dataset.GetFieldData())
+        out.SetFieldData(fd)
+    for name, arr in result.entropy.as_dict().items():
+        out.GetPointData().AddArray(_to_vtk_array(arr, name))
+    out.GetPointData().SetActiveScalars("entropy")
+    mark_input(out, result.kind, result.source)
+    return out

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS
+from fancloud_vtk.core import verbs
+from fancloud_vtk.params import VERB_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
-from .convert import fancloud_to_vtk, point_fans
-from .entropy import fan_values
+from .convert import fancloud_to_vtk, source_of
 
 
-@with_parameters(FAN_PARAMS + INPUT_PARAMS)
+@with_parameters(VERB_PARAMS["fans"])
 class FanCloudFilter(FanCloudAlgorithm):
     """Build the fan cloud of any ``vtkPointSet``.
 
@@ -48,7 +48,5 @@ class FanCloudFilter(FanCloudAlgorithm):
         super().__init__(inputType="vtkPointSet", outputType="vtkPolyData", **params)
 
     def execute(self, dataset):
-        values = self.parameters
-        fc = point_fans(dataset, fan_values(values), self._progress,
-                        keep_unreferenced=values["keep_unreferenced"])
-        return fancloud_to_vtk(fc)
+        result = verbs.fans(source_of(dataset), self.parameters, self._progress)
+        return fancloud_to_vtk(result.fancloud)

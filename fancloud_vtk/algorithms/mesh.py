@@ -2,23 +2,14 @@
 
 from __future__ import annotations
 
-from fancloud_vtk.core.entropy import UNREFERENCED_DROPPED
-from fancloud_vtk.core.fans import Cancelled
-from fancloud_vtk.core.mesh import fan_cloud_to_mesh
-from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS, MESH_PARAMS
+from fancloud_vtk.core import verbs
+from fancloud_vtk.params import VERB_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
-from .convert import (
-    add_unreferenced_field,
-    fancloud_from_vtk,
-    is_fancloud,
-    mesh_to_vtk,
-    point_fans,
-)
-from .entropy import fan_values
+from .convert import result_to_vtk, source_of
 
 
-@with_parameters(FAN_PARAMS + INPUT_PARAMS + MESH_PARAMS)
+@with_parameters(VERB_PARAMS["mesh"])
 class FanCloudMeshFilter(FanCloudAlgorithm):
     """Triangle mesh from a fan cloud: a 2-manifold grown from the fan triangles.
 
@@ -49,18 +40,5 @@ class FanCloudMeshFilter(FanCloudAlgorithm):
         super().__init__(inputType="vtkPointSet", outputType="vtkPolyData", **params)
 
     def execute(self, dataset):
-        values = self.parameters
-        mesh_values = {p.name: values[p.name] for p in MESH_PARAMS}
-        if is_fancloud(dataset):
-            fc = fancloud_from_vtk(dataset)
-        else:
-            fc = point_fans(dataset, fan_values(values),
-                            lambda f, m: self._progress(0.5 * f, m),
-                            keep_unreferenced=values["keep_unreferenced"])
-        if self._progress(0.5, "mesh"):  # the mesh stage cannot stop midway: ask before
-            raise Cancelled("meshing was cancelled")
-        mesh = fan_cloud_to_mesh(fc, **mesh_values)
-        self._progress(1.0, "done")
-        out = mesh_to_vtk(mesh)
-        add_unreferenced_field(out, fc.info.get(UNREFERENCED_DROPPED))
-        return out
+        result = verbs.mesh(source_of(dataset), self.parameters, self._progress)
+        return result_to_vtk(result, mark=False)

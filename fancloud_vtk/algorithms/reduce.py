@@ -2,44 +2,14 @@
 
 from __future__ import annotations
 
-import numpy as np
-
-from fancloud_vtk.core.fans import Cancelled
-from fancloud_vtk.core.mesh import fan_cloud_to_mesh
-from fancloud_vtk.core.reduction import hierarchy, laplacian_smooth, reduce, target_count
-from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS, REDUCE_PARAMS, SELECTIVE_PARAMS
+from fancloud_vtk.core import verbs
+from fancloud_vtk.params import VERB_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
-from .convert import (
-    KIND_MESH,
-    fancloud_to_vtk,
-    input_fan_cloud,
-    mark_input,
-    mesh_to_vtk,
-)
-from .entropy import fan_values
+from .convert import result_to_vtk, source_of
 
 
-def mesh_rings(kind: str) -> str:
-    """How to mesh a reduced fan cloud: the re-formed fans of a mesh's one-rings are
-    consistent already (``'fans'``); those grown from a point set's fans are not
-    everywhere (``'delaunay'``). See docs/entropy.md."""
-    return "fans" if kind == KIND_MESH else "delaunay"
-
-
-def _amount(values: dict) -> dict:
-    """``n_points=`` or ``keep=`` for the core, from the table's values (n_points 0: keep)."""
-    if values["n_points"]:
-        return {"n_points": values["n_points"]}
-    return {"keep": values["keep"]}
-
-
-def _reduce_values(values: dict) -> dict:
-    return {"weights": values["weights"], "method": values["method"],
-            "colors": values["color_array"] or None, "exact": values["exact"]}
-
-
-@with_parameters(FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS)
+@with_parameters(VERB_PARAMS["reduce"])
 class FanCloudReduceFilter(FanCloudAlgorithm):
     """Reduce a fan cloud, mesh or point set by entropy to an exact number of points.
 
@@ -70,64 +40,10 @@ class FanCloudReduceFilter(FanCloudAlgorithm):
         super().__init__(inputType="vtkPointSet", outputType="vtkPolyData", **params)
 
     def execute(self, dataset):
-        values = self.parameters
-        fc, kind = input_fan_cloud(dataset, fan_values(values),
-                                   lambda f, m: self._progress(0.3 * f, m),
-                                   keep_unreferenced=values["keep_unreferenced"])
-        small = reduce(fc, **_amount(values), **_reduce_values(values),
-                       progress=lambda f, m: self._progress(0.3 + 0.6 * f, m))
-        return fan_cloud_output(self, small, kind, values["mesh"], fc)
+        return result_to_vtk(verbs.reduce(source_of(dataset), self.parameters, self._progress))
 
 
-def fan_cloud_output(alg: FanCloudAlgorithm, fc, kind: str, mesh: bool, source):
-    """The filter's output: the fan cloud, or with ``mesh`` its triangle mesh, saying which
-    kind of input it came from (:func:`~.convert.mark_input`; ``source``: the input's fan
-    cloud)."""
-    if mesh:
-        if alg._progress(0.9, "mesh"):
-            raise Cancelled("meshing was cancelled")
-        out = mesh_to_vtk(fan_cloud_to_mesh(fc, rings=mesh_rings(kind)))
-    else:
-        out = fancloud_to_vtk(fc)
-    mark_input(out, kind, source)
-    alg._progress(1.0, "done")
-    return out
-
-
-def region_of(values: dict):
-    """The region of interest of the selective refinement's values (a ``(center, radius)``
-    sphere or box bounds) for :meth:`~fancloud_vtk.Hierarchy.selective`."""
-    if values["region"] == "sphere":
-        if not values["region_radius"] > 0:
-            raise ValueError("region_radius must be > 0 for a sphere region of interest")
-        return values["region_center"], values["region_radius"]
-    b = values["region_bounds"]
-    if b[0] == b[1] and b[2] == b[3] and b[4] == b[5]:
-        raise ValueError(f"region_bounds must be set for a box region of interest "
-                         f"(xmin, xmax, ymin, ymax, zmin, zmax), got the single point {b}")
-    if b[0] > b[1] or b[2] > b[3] or b[4] > b[5]:
-        raise ValueError(f"region_bounds must be (xmin, xmax, ymin, ymax, zmin, zmax) "
-                         f"with min <= max, got {b}")
-    return np.array(b, np.float64)
-
-
-def selective_refinement(fc, values: dict, progress=None):
-    """Figure 11 on a fan cloud, from the values of ``FAN_PARAMS + REDUCE_PARAMS`` (but
-    ``mesh``) ``+ SELECTIVE_PARAMS``: the hierarchy down to ``n_points``/``keep``, its coarsest
-    level smoothed ``smooth_iterations`` times, the removed points inside the region
-    reinserted (fans built with the fan parameters). The filter and ``fancloud selective``
-    call it."""
-    region = region_of(values)
-    target = target_count(fc.n_points, **_amount(values))
-    h = hierarchy(fc, target, **_reduce_values(values),
-                  progress=None if progress is None else lambda f, m: progress(0.9 * f, m))
-    coarse = h.level(target)
-    if values["smooth_iterations"]:
-        coarse = laplacian_smooth(coarse, values["smooth_iterations"])
-    return h.selective(region, base=coarse, **fan_values(values))
-
-
-@with_parameters(FAN_PARAMS + INPUT_PARAMS + REDUCE_PARAMS[:-1] + SELECTIVE_PARAMS)
+@with_parameters(VERB_PARAMS["selective"])
 class FanCloudSelectiveRefineFilter(FanCloudAlgorithm):
     """Reduce, optionally smooth the coarse level, then refine only a region (Figure 11).
 
@@ -160,13 +76,6 @@ class FanCloudSelectiveRefineFilter(FanCloudAlgorithm):
         super().__init__(inputType="vtkPointSet", outputType="vtkPolyData", **params)
 
     def execute(self, dataset):
-        values = self.parameters
-        region_of(values)  # a bad region fails before the fans are built
-        fc, kind = input_fan_cloud(dataset, fan_values(values),
-                                   lambda f, m: self._progress(0.3 * f, m),
-                                   keep_unreferenced=values["keep_unreferenced"])
-        out = fancloud_to_vtk(selective_refinement(
-            fc, values, lambda f, m: self._progress(0.3 + 0.7 * f, m)))
-        mark_input(out, kind, fc)
-        self._progress(1.0, "done")
-        return out
+        verbs.region_of(self.parameters)  # a bad region fails before the input is read
+        return result_to_vtk(verbs.selective(source_of(dataset), self.parameters,
+                                             self._progress))

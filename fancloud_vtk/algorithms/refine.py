@@ -2,24 +2,14 @@
 
 from __future__ import annotations
 
-from fancloud_vtk.core.refinement import refine
-from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS, REFINE_PARAMS
+from fancloud_vtk.core import verbs
+from fancloud_vtk.params import VERB_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
-from .convert import input_fan_cloud
-from .entropy import fan_values
-from .reduce import fan_cloud_output
+from .convert import result_to_vtk, source_of
 
 
-def refine_arguments(values: dict) -> dict:
-    """The core's keyword arguments from the table's values (n_points 0: factor)."""
-    amount = {"n_points": values["n_points"]} if values["n_points"] else \
-        {"factor": values["factor"]}
-    return {**amount, "weights": values["weights"], "colors": values["color_array"] or None,
-            "move": values["move"], "exact": values["exact"]}
-
-
-@with_parameters(FAN_PARAMS + INPUT_PARAMS + REFINE_PARAMS)
+@with_parameters(VERB_PARAMS["refine"])
 class FanCloudRefineFilter(FanCloudAlgorithm):
     """Refine a fan cloud, mesh or point set beyond its resolution by entropy (section 7).
 
@@ -50,10 +40,4 @@ class FanCloudRefineFilter(FanCloudAlgorithm):
         super().__init__(inputType="vtkPointSet", outputType="vtkPolyData", **params)
 
     def execute(self, dataset):
-        values = self.parameters
-        fc, kind = input_fan_cloud(dataset, fan_values(values),
-                                   lambda f, m: self._progress(0.3 * f, m),
-                                   keep_unreferenced=values["keep_unreferenced"])
-        fine = refine(fc, **refine_arguments(values),
-                      progress=lambda f, m: self._progress(0.3 + 0.6 * f, m))
-        return fan_cloud_output(self, fine, kind, values["mesh"], fc)
+        return result_to_vtk(verbs.refine(source_of(dataset), self.parameters, self._progress))

@@ -22,17 +22,16 @@ import time
 import numpy as np
 from vtkmodules.vtkCommonDataModel import vtkImageData
 
-from fancloud_vtk.core.entropy import UNREFERENCED_DROPPED
-from fancloud_vtk.core.vdfc import Camera, ViewDependentFanCloud, terrain_blocks, terrain_fan_cloud
-from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS, VDFC_PARAMS
+from fancloud_vtk.core import verbs
+from fancloud_vtk.core.vdfc import Camera, ViewDependentFanCloud
+from fancloud_vtk.core.verbs import e_max_of
+from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS, VERB_PARAMS
 
 from .base import FanCloudAlgorithm, with_parameters
-from .convert import add_unreferenced_field, input_fan_cloud, point_arrays, vtk_to_numpy
-from .entropy import fan_values
+from .convert import add_unreferenced_field, point_arrays, source_of, to_vtk, vtk_to_numpy
 
-#: Share of the bounds' diagonal used as e_max when the parameter is 0.
-AUTO_E_MAX = 1e-3
-KIND_HEIGHT_FIELD = "height field"
+__all__ = ["FanCloudViewDependentFilter", "build_forest", "e_max_of", "flythrough",
+           "follow_camera", "height_field_of_image", "image_of_heights", "source_of_image"]
 
 
 def height_field_of_image(image, array: str | None = None):
@@ -64,48 +63,33 @@ def height_field_of_image(image, array: str | None = None):
     return heights, (sx, sy), (ox, oy), others
 
 
+def source_of_image(image) -> verbs.Source:
+    """A 2-d ``vtkImageData`` (a height field) as the verbs' ``Source``."""
+    heights, spacing, origin, others = height_field_of_image(image)
+    return verbs.Source(heights=(heights, spacing, origin), point_data=others)
+
+
 def build_forest(dataset, values: dict, progress=None) -> tuple[ViewDependentFanCloud, str]:
-    """The forest of a filter input: a height field image, a fan cloud, a mesh or points.
+    """The forest of a filter input (a height field image, a fan cloud, a mesh or points)
+    and which kind of input it was: :func:`fancloud_vtk.core.verbs.vdfc`.
 
     The forest's attribute ``unreferenced_dropped`` is the number of a mesh's vertices
     that no triangle used and were dropped (``None`` for other inputs; not saved by
     ``save``).
     """
-    blocks = None
     if isinstance(dataset, vtkImageData) or dataset.IsA("vtkImageData"):
-        heights, spacing, origin, others = height_field_of_image(dataset)
-        fc = terrain_fan_cloud(heights, spacing, origin, point_data=others)
-        if values["block_size"]:
-            blocks = terrain_blocks(heights.shape, values["block_size"])
-        kind = KIND_HEIGHT_FIELD
+        source = source_of_image(dataset)
     else:
-        fc, kind = input_fan_cloud(dataset, fan_values(values), progress,
-                                   keep_unreferenced=values["keep_unreferenced"])
-    vd = forest_of(fc, values, blocks, progress)
-    vd.unreferenced_dropped = fc.info.get(UNREFERENCED_DROPPED)
-    return vd, kind
-
-
-def forest_of(fc, values: dict, blocks=None, progress=None) -> ViewDependentFanCloud:
-    """``ViewDependentFanCloud.build`` of a fan cloud with the table's build values."""
-    return ViewDependentFanCloud.build(fc, values["merge"], weights=values["weights"],
-                                       blocks=blocks, n_roots=values["n_roots"],
-                                       colors=values["color_array"] or None, progress=progress)
-
-
-def e_max_of(vd: ViewDependentFanCloud, e_max: float) -> float:
-    """``e_max``, or :data:`AUTO_E_MAX` times the diagonal of the bounds when it is 0."""
-    if e_max > 0:
-        return e_max
-    b = vd.bounds().reshape(3, 2)
-    return AUTO_E_MAX * float(np.linalg.norm(b[:, 1] - b[:, 0]))
+        source = source_of(dataset)
+    vd = verbs.vdfc(source, values, progress)
+    return vd, vd.fancloud_input
 
 
 _BUILD = ("merge", "weights", "color_array", "n_roots", "block_size") + \
     tuple(p.name for p in FAN_PARAMS + INPUT_PARAMS)
 
 
-@with_parameters(FAN_PARAMS + INPUT_PARAMS + VDFC_PARAMS)
+@with_parameters(VERB_PARAMS["vdfc"])
 class FanCloudViewDependentFilter(FanCloudAlgorithm):
     """The view-dependent fan cloud of the input, for a camera (section 8).
 
@@ -232,7 +216,7 @@ class FanCloudViewDependentFilter(FanCloudAlgorithm):
                                 superfluous=values["superfluous"])
         self.last_stats = dict(front.stats)
         self._progress(1.0, "front")
-        out = front.to_vtk()
+        out = to_vtk(front)
         add_unreferenced_field(out, getattr(vd, "unreferenced_dropped", None))
         return out
 
@@ -305,7 +289,7 @@ def flythrough(forest: ViewDependentFanCloud, cameras, e_max: float, out_dir=Non
     cameras : sequence of camera tuples
         E.g. from :func:`~fancloud_vtk.core.vdfc.terrain_path`.
     e_max, d_max : float
-        As for :meth:`ViewDependentFanCloud.front` (``d_max`` None: the
+        As for :meth:`ViewDependentFanCloud.front_arrays` (``d_max`` None: the
         default range of sight of the first frame, kept for the whole path).
     out_dir : str, optional
         Folder for ``frame_0000.png``, ... and ``frames.csv`` (None: no files,
@@ -314,7 +298,7 @@ def flythrough(forest: ViewDependentFanCloud, cameras, e_max: float, out_dir=Non
         Width and height of the frames.
     superfluous : bool, default: False
         Remove the fronts' superfluous triangles (see
-        :meth:`ViewDependentFanCloud.front`).
+        :meth:`ViewDependentFanCloud.front_arrays`).
 
     Returns
     -------
@@ -361,7 +345,7 @@ def flythrough(forest: ViewDependentFanCloud, cameras, e_max: float, out_dir=Non
         for i, cam in enumerate(cams):
             front = forest.front_arrays(cam, e_max, d_max, aspect=aspect,
                                         superfluous=superfluous)
-            poly = front.to_vtk()
+            poly = to_vtk(front)
             mapper.SetInputData(poly)
             vc = ren.GetActiveCamera()
             vc.SetPosition(*cam.position)

@@ -227,11 +227,11 @@ def drop_unreferenced(points: np.ndarray, triangles: np.ndarray, normals=None, p
     ``[0, n)``, else a :class:`~fancloud_vtk.core.mesh_stats.MeshInputError`)
     and returned as a new int64 array; without triangles nothing is dropped.
     """
-    from .mesh_stats import _as_triangles
+    from .mesh_stats import as_triangles
 
     point_data = {} if point_data is None else point_data
     n = len(points)
-    tri = _as_triangles(triangles, n)
+    tri = as_triangles(triangles, n)
     used = np.zeros(n, bool)
     used[tri.ravel()] = True
     n_kept = int(np.count_nonzero(used))

@@ -167,7 +167,7 @@ def build_fans(
     timings = {}
     t0 = time.perf_counter()
     _report(progress, 0.0, "neighbour search")
-    grid = _Grid(pts)
+    grid = Grid(pts)
     if grid.n_dup:
         return _merge_duplicates(
             pts, k, given_normals, pdata,
@@ -341,7 +341,7 @@ def _sorted_unique_rows(sp, pools, p):
     return np.ascontiguousarray(np.take_along_axis(pools, order, 1))
 
 
-class _Grid:
+class Grid:
     """The points bucketed into uniform cells (:mod:`._grid_kernels`), in cell order."""
 
     #: points per occupied cell: the 27 cells around a point then certify

@@ -364,7 +364,7 @@ def _spatial_order(fc: FanCloud):
     The order is the fan construction's grid order (cells in Morton order).
     Only the geometry and the rings are carried over (no point data).
     """
-    from .fans import _Grid
+    from .fans import Grid as _Grid
 
     grid = _Grid(fc.points)
     order = grid.order

@@ -74,7 +74,7 @@ class MeshInputError(ValueError):
 # ----------------------------------------------------------------------------- validation
 
 
-def _as_triangles(triangles, n_points: int | None) -> np.ndarray:
+def as_triangles(triangles, n_points: int | None) -> np.ndarray:
     """Return ``triangles`` as a new ``(m, 3)`` int64 array, checking indices."""
     try:
         arr = np.asarray(triangles)
@@ -551,7 +551,7 @@ def boundary_loops(triangles) -> list[np.ndarray]:
     >>> [loop.tolist() for loop in boundary_loops(np.array([[0, 1, 2], [0, 2, 3]]))]
     [[0, 1, 2, 3]]
     """
-    tri = _as_triangles(triangles, None)
+    tri = as_triangles(triangles, None)
     tri = tri[~_collapsed(tri)]
     if tri.size and tri.max() > 2 * tri.size + 1024:
         # sparse vertex numbers (there are no points to bound them): number them densely
@@ -1083,7 +1083,7 @@ def self_intersecting_pairs(points, triangles) -> np.ndarray:
     [[0, 1]]
     """
     pts = _as_points(points)
-    tri = _as_triangles(triangles, pts.shape[0])
+    tri = as_triangles(triangles, pts.shape[0])
     return _intersecting_pairs(pts, tri, ~_collapsed(tri))
 
 
@@ -1178,7 +1178,7 @@ def mesh_statistics(points, triangles, *, self_intersections: bool = True) -> di
     (4, 1, 1)
     """
     pts = _as_points(points)
-    tri = _as_triangles(triangles, pts.shape[0])
+    tri = as_triangles(triangles, pts.shape[0])
     n = pts.shape[0]
     m = tri.shape[0]
     collapsed = _collapsed(tri)

@@ -7,9 +7,10 @@ triangle ``(p, q_m, q_1)``, an *open* fan (a boundary point) does not: its gap
 is always between the last and the first ring entry. The rings are kept in
 compressed sparse row (CSR) form, ``ring[offsets[i]:offsets[i + 1]]``.
 
-This module is VTK-free. :meth:`FanCloud.to_vtk`, :meth:`FanCloud.from_vtk`,
-:meth:`FanCloud.save` and :meth:`FanCloud.load` import the VTK conversion in
-:mod:`fancloud_vtk.algorithms.convert` when they are called.
+This module is VTK-free, as is all of :mod:`fancloud_vtk.core`. The VTK
+conversion and ``.vtp`` files are :func:`fancloud_vtk.to_vtk`,
+:func:`fancloud_vtk.from_vtk`, :func:`fancloud_vtk.save` and
+:func:`fancloud_vtk.load` (in :mod:`fancloud_vtk.algorithms.convert`).
 """
 
 from __future__ import annotations
@@ -241,34 +242,3 @@ class FanCloud:
             f"FanCloud({self.n_points} points, {self.n_points - self.n_open} closed fans, "
             f"{self.n_open} open, arrays: {sorted(self.point_data)})"
         )
-
-    # -- VTK conversions (import VTK lazily; the core stays VTK-free) ----
-    def to_vtk(self):
-        """This fan cloud as a ``vtkPolyData`` (see :func:`fancloud_to_vtk`).
-
-        For PyVista: ``pyvista.wrap(fc.to_vtk())`` (the core never imports
-        pyvista, so that ParaView's VTK 9.2 can load it).
-        """
-        from fancloud_vtk.algorithms.convert import fancloud_to_vtk
-
-        return fancloud_to_vtk(self)
-
-    @classmethod
-    def from_vtk(cls, dataset) -> FanCloud:
-        """Fan cloud from a ``vtkPolyData`` or ``pyvista.PolyData`` made by :meth:`to_vtk`."""
-        from fancloud_vtk.algorithms.convert import fancloud_from_vtk
-
-        return fancloud_from_vtk(dataset)
-
-    def save(self, path) -> None:
-        """Write to a ``.vtp`` file; :meth:`load` gives identical arrays back."""
-        from fancloud_vtk.algorithms.convert import write_vtp
-
-        write_vtp(self.to_vtk(), path)
-
-    @classmethod
-    def load(cls, path) -> FanCloud:
-        """Read a fan cloud written by :meth:`save`."""
-        from fancloud_vtk.algorithms.convert import read_vtp
-
-        return cls.from_vtk(read_vtp(path))

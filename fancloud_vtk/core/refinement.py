@@ -9,8 +9,8 @@ curvature of its fan (the cotangent mean curvature normal, Meyer et al.
 and the fans it enters are re-formed locally, the entropies around it
 updated, and the next insertion taken from a priority queue. The inserted
 points go on top of the removal :class:`~fancloud_vtk.Hierarchy` (reversed,
-an insertion is a removal), so ``level()`` reaches above the input size.
-See docs/refinement.md.
+an insertion is a removal), so ``level()`` reaches above the input size
+(:func:`refine_hierarchy`). See docs/refinement.md.
 """
 
 from __future__ import annotations
@@ -23,9 +23,9 @@ from . import _reduction_kernels as RK
 from . import _refinement_kernels as FK
 from ._entropy_kernels import mean_distance
 from .entropy import as_colors, as_fan_cloud, check_weights
-from .fans import Cancelled
+from .fans import Cancelled, Grid
+from .hierarchy import MIN_WIDTH, ORIGINAL_ID, Hierarchy, RoundMarks, stacked
 from .model import FanCloud, find_color_array
-from .reduction import MIN_WIDTH, ORIGINAL_ID, Hierarchy, RoundMarks
 from .validation import FanCloudInputError
 
 #: refinement's default entropy weights: distance and curvature. The curvature-change term
@@ -361,9 +361,7 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     if not dbar > 0:
         raise FanCloudInputError("the fans have no neighbours at a distance > 0: nothing to refine")
     _report(progress, 0.0, "refinement: setting up")
-    from .fans import _Grid
-
-    seq = _Grid(fc.points).order  # a spatial order to work in (the fan grid's)
+    seq = Grid(fc.points).order  # a spatial order to work in (the fan grid's)
     work = _delaunay(fc, seq)
     pts, nrm, R, rlen, ropen, log = _insert(work, target, w, rgb, dbar, bool(move), bool(exact),
                                             progress, bool(return_hierarchy), seq)
@@ -383,6 +381,64 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     if not return_hierarchy:
         return out
     return out, _hierarchy(fc, work, _changed_rings(fc, work), out, log, w)
+
+
+def refine_hierarchy(hierarchy: Hierarchy, n_points=None, factor=None, **kwargs) -> Hierarchy:
+    """A hierarchy with refined levels above its finest (paper section 7).
+
+    The finest level of ``hierarchy`` is refined by :func:`refine` (same
+    parameters) and the insertions go on top: the new hierarchy's
+    ``level(m)`` reaches from ``hierarchy.n_min`` up to the refined count,
+    and its levels up to the old ``hierarchy.n_points`` are those of
+    ``hierarchy``, which is not changed.
+
+    Parameters
+    ----------
+    hierarchy : Hierarchy
+        The levels to build on (from :func:`~fancloud_vtk.hierarchy`,
+        ``reduce(..., return_hierarchy=True)`` or this function).
+    n_points : int, optional
+        Points of the new finest level (at least ``hierarchy.n_points``).
+    factor : float, optional
+        Instead of ``n_points``: ``round(factor * hierarchy.n_points)``
+        points; > 1.
+    **kwargs
+        The other parameters of :func:`refine` (``weights``, ``colors``,
+        ``move``, ``exact``, ``progress``); not ``return_hierarchy``.
+
+    Returns
+    -------
+    Hierarchy
+        From ``hierarchy.n_min`` to the refined count; inserted points have
+        ``original_id`` -1.
+
+    Raises
+    ------
+    TypeError
+        ``hierarchy`` is not a :class:`~fancloud_vtk.Hierarchy`, or
+        ``return_hierarchy`` is given.
+    ValueError
+        As :func:`refine`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fancloud_vtk import build_fans, hierarchy, refine_hierarchy
+    >>> rng = np.random.default_rng(0)
+    >>> p = rng.normal(size=(2000, 3))
+    >>> p /= np.linalg.norm(p, axis=1)[:, None]
+    >>> h = refine_hierarchy(hierarchy(build_fans(p), 500), factor=2)
+    >>> h.n_min, h.n_points, h.level(3000).n_points
+    (500, 4000, 3000)
+    """
+    if not isinstance(hierarchy, Hierarchy):
+        raise TypeError(f"refine_hierarchy needs a Hierarchy, got {type(hierarchy).__name__} "
+                        "(refine() refines a fan cloud or a mesh)")
+    if "return_hierarchy" in kwargs:
+        raise TypeError("refine_hierarchy always returns a Hierarchy (no return_hierarchy=)")
+    _, upper = refine(hierarchy.level(hierarchy.n_points), n_points, factor,
+                      return_hierarchy=True, **kwargs)
+    return stacked(upper, hierarchy)
 
 
 def _delaunay(fc: FanCloud, seq) -> FanCloud:

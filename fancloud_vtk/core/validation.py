@@ -7,11 +7,66 @@ arrays returned are new ones.
 
 from __future__ import annotations
 
+import errno
+import os
+
 import numpy as np
 
 
 class FanCloudInputError(ValueError):
     """The input points or parameters cannot give a fan cloud."""
+
+
+class FileReadError(ValueError):
+    """A file could not be read: names the path and the reason.
+
+    Defined here so that the core can raise it without importing the file
+    readers; :mod:`fancloud_vtk.io` exports the same class
+    (``fancloud_vtk.io.FileReadError``).
+
+    Parameters
+    ----------
+    path : str
+        The file that could not be read.
+    reason : str
+        Why it could not be read.
+    """
+
+    def __init__(self, path: str, reason: str) -> None:
+        super().__init__(path, reason)
+        self.path = path
+        self.reason = reason
+
+    def __str__(self) -> str:
+        return f"cannot read {self.path!r}: {self.reason}"
+
+
+class _NoSuchFile(FileReadError, FileNotFoundError):
+    """A missing file: a :class:`FileReadError` (a ``ValueError``) as
+    :func:`~fancloud_vtk.io.read_point_cloud` raises, and a ``FileNotFoundError`` as
+    :func:`~fancloud_vtk.algorithms.convert.read_vtp` raises."""
+
+    def __init__(self, path: str, reason: str = "no such file"):
+        super().__init__(path, reason)
+        self.errno, self.strerror, self.filename = errno.ENOENT, reason, path
+
+    def __reduce__(self):
+        return type(self), (self.path, self.reason)
+
+
+def readable_file(path) -> str:
+    """``path`` as a ``str`` if it names a non-empty file; else a :class:`FileReadError`
+    naming it: missing (then also a ``FileNotFoundError``), a directory, or empty."""
+    path = os.fspath(path)
+    if isinstance(path, bytes):
+        path = os.fsdecode(path)
+    if not os.path.exists(path):
+        raise _NoSuchFile(path)
+    if os.path.isdir(path):
+        raise FileReadError(path, "is a directory, not a file")
+    if os.path.getsize(path) == 0:
+        raise FileReadError(path, "the file is empty (0 bytes)")
+    return path
 
 
 def as_points(points, *, name: str = "points") -> np.ndarray:

@@ -10,7 +10,7 @@ merges make a forest: every node stores its two children, its position,
 its fan at merge time and e(r), the largest distance of its descendants
 (the original points) from that fan, computed once in preprocessing.
 
-:meth:`ViewDependentFanCloud.front` walks the forest for a camera: a node is
+:meth:`ViewDependentFanCloud.front_arrays` walks the forest for a camera: a node is
 refined (its children shown instead) when it is in the view frustum and
 ``e(r) > d(r) / d_max * e_max``. The front is kept between calls and only
 moved where the camera changed it. The active fans are drawn; a fan
@@ -379,12 +379,6 @@ class Front(TriangleMesh):
     def n_points(self) -> int:
         return int(self.points.shape[0])
 
-    def to_vtk(self):
-        """The front as a ``vtkPolyData`` (points, triangles, point arrays)."""
-        from fancloud_vtk.algorithms.convert import front_to_vtk
-
-        return front_to_vtk(self)
-
 
 # -- the forest ----------------------------------------------------------------------
 
@@ -482,8 +476,8 @@ def _alive_edges(res, gid):
 class ViewDependentFanCloud:
     """A merge forest over a fan cloud and its camera-driven active front (section 8).
 
-    Build one with :meth:`build`; ask :meth:`front` for the active front of
-    a camera. Node ids: the original points first (their input index), then
+    Build one with :meth:`build`; ask :meth:`front_arrays` for the active
+    front of a camera. Node ids: the original points first (their input index), then
     the merged nodes in merge order, so a node's children have smaller ids.
 
     Attributes
@@ -591,8 +585,8 @@ class ViewDependentFanCloud:
         >>> vd.n_leaves, len(vd.roots), vd.n_nodes == 2 * vd.n_leaves - len(vd.roots)
         (3600, 1, True)
         >>> cam = ((3.0, -4.0, 3.0), (3.0, 3.0, 0.0), (0, 0, 1), 45.0)
-        >>> front = vd.front(cam, e_max=0.05)  # a vtkPolyData
-        >>> sorted(front.GetPointData().GetArrayName(i) for i in range(3))
+        >>> front = vd.front_arrays(cam, e_max=0.05)  # numpy arrays; VTK: fancloud_vtk.to_vtk
+        >>> sorted(front.point_data)
         ['error', 'level', 'node_id']
         """
         if merge not in MERGES:
@@ -773,7 +767,7 @@ class ViewDependentFanCloud:
 
     # -- the front --------------------------------------------------------------
     def reset_front(self) -> None:
-        """Forget the kept front: the next :meth:`front` starts from the roots."""
+        """Forget the kept front: the next :meth:`front_arrays` starts from the roots."""
         self._state = np.zeros(self.n_nodes, np.int8)
         self._state[self.roots] = VK.FRONT
         self._front = self.roots.copy()
@@ -792,7 +786,44 @@ class ViewDependentFanCloud:
     def front_arrays(self, camera, e_max: float, d_max: float | None = None, *,
                      aspect: float | None = None, incremental: bool = True,
                      superfluous: bool = False) -> Front:
-        """The active front for ``camera`` as arrays (see :meth:`front`)."""
+        """The active front for a camera: a :class:`Front` (numpy arrays).
+
+        Parameters
+        ----------
+        camera : vtkCamera, pyvista.Camera, Camera or tuple
+            ``(position, focal_point, view_up, view_angle[, aspect])`` for a
+            tuple; view angle in degrees (vertical, as VTK's).
+        e_max : float
+            The largest error allowed at distance ``d_max`` (> 0).
+        d_max : float, optional
+            The range of sight (default: from the eye to the farthest corner
+            of the bounds).
+        aspect : float, optional
+            Width / height of the view (a VTK camera does not know it;
+            default 1, or the tuple's).
+        incremental : bool, default: True
+            Start from the front of the previous call (False: from the roots;
+            the result is the same).
+        superfluous : bool, default: False
+            Also remove superfluous triangles, as the mesh does (paper
+            section 4): where fans of different levels meet, their triangles
+            overlap, and a convex quadrilateral covered by both diagonals'
+            triangles keeps one pair (the complete diagonal, then the one
+            more fans hold, then the better-shaped); no ground loses its
+            cover. About 2.0 triangles per point instead of about 2.15, for
+            about twice the update time (``stats["distinct"]``: the count
+            before).
+
+        Returns
+        -------
+        Front
+            The active points and their distinct triangles, with point arrays
+            ``node_id``, ``level``, ``error`` (and the colours), and the
+            statistics ``stats``. As a ``vtkPolyData``:
+            ``fancloud_vtk.to_vtk(front)``; the accessor's forest
+            (``cloud.fancloud.vdfc()``) has ``front()``, which gives a
+            ``pyvista.PolyData``.
+        """
         t0 = time.perf_counter()
         cam = Camera.of(camera, aspect)
         e_max = _positive("e_max", e_max)
@@ -847,48 +878,6 @@ class ViewDependentFanCloud:
                  "seconds_superfluous": t4 - t3,
                  "e_max": e_max, "d_max": d_max}
         return Front(points, tri, normals, pdata, stats)
-
-    def front(self, camera, e_max: float, d_max: float | None = None, *,
-              aspect: float | None = None, incremental: bool = True,
-              superfluous: bool = False):
-        """The active front for a camera, as a ``vtkPolyData``.
-
-        Parameters
-        ----------
-        camera : vtkCamera, pyvista.Camera, Camera or tuple
-            ``(position, focal_point, view_up, view_angle[, aspect])`` for a
-            tuple; view angle in degrees (vertical, as VTK's).
-        e_max : float
-            The largest error allowed at distance ``d_max`` (> 0).
-        d_max : float, optional
-            The range of sight (default: from the eye to the farthest corner
-            of the bounds).
-        aspect : float, optional
-            Width / height of the view (a VTK camera does not know it;
-            default 1, or the tuple's).
-        incremental : bool, default: True
-            Start from the front of the previous call (False: from the roots;
-            the result is the same).
-        superfluous : bool, default: False
-            Also remove superfluous triangles, as the mesh does (paper
-            section 4): where fans of different levels meet, their triangles
-            overlap, and a convex quadrilateral covered by both diagonals'
-            triangles keeps one pair (the complete diagonal, then the one
-            more fans hold, then the better-shaped); no ground loses its
-            cover. About 2.0 triangles per point instead of about 2.15, for
-            about twice the update time (``stats["distinct"]``: the count
-            before).
-
-        Returns
-        -------
-        vtkPolyData
-            The active points and their distinct triangles, with point arrays
-            ``node_id``, ``level``, ``error`` (and the colours). For PyVista:
-            ``pyvista.wrap(...)``, or use the accessor ``cloud.fancloud.vdfc()``
-            whose front is a ``pyvista.PolyData``.
-        """
-        return self.front_arrays(camera, e_max, d_max, aspect=aspect, incremental=incremental,
-                                 superfluous=superfluous).to_vtk()
 
     # -- saving -----------------------------------------------------------------
     def _arrays(self) -> dict[str, np.ndarray]:

@@ -1,60 +1,20 @@
-"""``fancloud bench``: benchmarks, each a subcommand writing a Markdown table and raw JSON.
-
-``fancloud bench fans [--sizes 100k,1M,4M] [--repeat 3] [--out bench_out] [--quick]``
-    Fan construction: speed against a peer baseline (a scipy ``cKDTree``
-    build plus a 7-nearest-neighbour query of every point), peak memory,
-    the size of the fan cloud, the first-call (numba compile) time, the
-    fraction of open fans on closed surfaces, and whether the rings are
-    bit-identical whatever the number of threads. Writes ``fans.md`` (also
-    printed) and ``fans.json`` to ``--out``.
+"""``fancloud bench mesh``: triangle meshes from the same points, ours against the peers.
 
 ``fancloud bench mesh [--data bunny sphere 1M ...] [--methods ...] [--timeout 600]``
-    Triangle meshes from the same points: this project (``build_fans`` +
-    ``fan_cloud_to_mesh``) against MeshLib's ``triangulatePointCloud``,
-    pymeshlab's ball pivoting and screened Poisson, and VTK's
-    ``vtkSurfaceReconstructionFilter``. Per method: time, triangles per point,
-    non-manifold edges and vertices, boundary edges, holes, self-intersecting
-    triangle pairs, unused points and the distance to the reference surface;
-    our stage counts beside the paper's. Each method runs in its own process
-    with a timeout (:mod:`fancloud_vtk._bench_peers`): a missing, failing,
-    crashing or hanging method is a row saying so. Writes ``mesh.md`` (also
-    printed), ``mesh.json`` and ``mesh.png`` (one bar panel per metric).
-    ``--data corpus-small`` / ``corpus`` (:mod:`fancloud_vtk.corpus`): real
-    models, resamplings and simulated range scans, each against its own
-    mesh, with a table per entry (self-intersecting faces, unused points and
-    outliers, boundary and non-manifold counts, distances in median
-    spacings) and a render ``corpus_NAME.png`` of its worst regions.
 
-``fancloud bench reduce [--data bunny bone 1M ...] [--keep 0.42 0.176] [--quick]``
-    Reduction at equal vertex counts: ``reduce`` against fast-simplification,
-    pymeshlab's quadric edge collapse and Poisson-disk points, and VTK's
-    ``vtkQuadricDecimation``; time, Hausdorff, feature and colour error
-    (:mod:`fancloud_vtk.bench_reduce`). Writes ``reduce.md`` (also printed),
-    ``reduce.json``, ``reduce_curves.png`` and ``reduce_bunny.png``.
-
-``fancloud bench refine [--part speed cycles] [--n 100000] [--cycles 10] [--quick]``
-    Refinement (:mod:`fancloud_vtk.bench_refine`): ``refine`` n -> 2n points
-    against ``build_fans`` of 2n points in the same process, and the paper's
-    Figure 12 (the bunny reduced to half and refined back, ten times:
-    Hausdorff distance and volume per cycle). Writes ``refine.md`` (also
-    printed), ``refine.json``, ``refine_cycles.png`` and
-    ``refine_cycles_error.png``.
-
-``fancloud bench vdfc [--part build frames peers] [--n 1000] [--frames 300] [--e-max 20]``
-    View-dependent fan clouds (:mod:`fancloud_vtk.bench_vdfc`) on the
-    Jacksboro DEM (1000 x 1000: a million points): the forest's build time
-    against ``build_fans``; a fly-through's front update time, active points
-    and triangles per point; the screen-space error of the fronts against
-    ``vtkGreedyTerrainDecimation`` and fast-simplification at the same
-    triangle count. Writes ``vdfc.md`` (also printed), ``vdfc.json``,
-    ``vdfc_frames.csv``, ``vdfc_frames.png``, ``frames/frame_*.png`` and
-    ``vdfc_peers.png``.
-
-Everything in the tables is measured in the run; only the targets (the
-issue's figures) are constants. Measurements that need a fresh process
-(first call, memory, thread counts, the peers) run in subprocesses of the
-same Python (see :func:`_child_main`). Further benchmarks are added as
-subcommands in :func:`make_parser`.
+This project (``build_fans`` + ``fan_cloud_to_mesh``) against MeshLib's
+``triangulatePointCloud``, pymeshlab's ball pivoting and screened Poisson, and VTK's
+``vtkSurfaceReconstructionFilter`` (:mod:`fancloud_vtk.bench.peers`). Per method:
+time, triangles per point, non-manifold edges and vertices, boundary edges, holes,
+self-intersecting triangle pairs, unused points and the distance to the reference
+surface; our stage counts beside the paper's. Each method runs in its own process
+with a timeout (:func:`fancloud_vtk.bench.harness.run_method`): a missing, failing,
+crashing or hanging method is a row saying so. Writes ``mesh.md`` (also printed),
+``mesh.json`` and ``mesh.png`` (one bar panel per metric). ``--data corpus-small`` /
+``corpus`` (:mod:`fancloud_vtk.corpus`): real models, resamplings and simulated range
+scans, each against its own mesh, with a table per entry (self-intersecting faces,
+unused points and outliers, boundary and non-manifold counts, distances in median
+spacings) and a render ``corpus_NAME.png`` of its worst regions.
 """
 
 from __future__ import annotations
@@ -62,675 +22,41 @@ from __future__ import annotations
 import argparse
 import fnmatch
 import gc
-import hashlib
-import json
 import os
-import platform
-import resource
-import subprocess
-import sys
 import tempfile
-import threading
 import time
 
 import numpy as np
 
-#: The issue's targets for ``bench fans``.
-TARGET_RATIO = 1.5  #: build_fans time / peer time
-TARGET_PEAK_BPP = 600.0  #: peak RSS growth during build_fans, bytes per point, at 1M
-TARGET_NBYTES_BPP = 150.0  #: FanCloud.nbytes() per point (k=6, no colours)
-TARGET_OPEN_PCT = 0.1  #: open fans on a closed surface, percent, default rule
-
-K = 6  #: neighbours per fan in every measurement (the paper's default)
-PEER_K = K + 1  #: the peer queries the point itself and its k nearest
-WARMUP_POINTS = 2_000  #: size of the small cloud for warm-up and first-call runs
-SAMPLE_INTERVAL = 0.002  #: seconds between RSS samples
-CHILD_TIMEOUT = 900  #: seconds allowed to one subprocess
-
-_SUFFIXES = {"": 1, "k": 1_000, "m": 1_000_000}
-
-
-# -- sizes and data ----------------------------------------------------------------
-
-
-def parse_size(text: str) -> int:
-    """``'100k'`` -> 100000, ``'4M'`` -> 4000000, ``'2500'`` -> 2500, ``'1.5M'`` too."""
-    s = text.strip().lower()
-    suffix = s[-1:] if s[-1:] in ("k", "m") else ""
-    try:
-        value = float(s[: len(s) - len(suffix)]) * _SUFFIXES[suffix]
-    except ValueError as exc:
-        raise ValueError(f"not a size: {text!r} (examples: 5000, 100k, 1M)") from exc
-    if value < 1 or not float(value).is_integer():
-        raise ValueError(f"not a whole positive number of points: {text!r}")
-    return int(value)
-
-
-def parse_sizes(text: str) -> list[int]:
-    """A comma-separated list of sizes: ``'100k,1M,4M'``."""
-    sizes = [parse_size(part) for part in text.split(",") if part.strip()]
-    if not sizes:
-        raise ValueError("no sizes given")
-    return sizes
-
-
-def size_label(n: int) -> str:
-    """Short label of a size: 100000 -> '100k', 4000000 -> '4M', 2500 -> '2,500'."""
-    for div, suffix in ((1_000_000, "M"), (1_000, "k")):
-        if n >= div and n % div == 0:
-            return f"{n // div}{suffix}"
-    return f"{n:,}"
-
-
-def bumpy_radius(d: np.ndarray) -> np.ndarray:
-    """Radius of the bumpy sphere in the unit directions ``d``: 1 + 0.1 sin5x sin5y sin5z."""
-    return 1.0 + 0.1 * np.sin(5.0 * d[:, 0]) * np.sin(5.0 * d[:, 1]) * np.sin(5.0 * d[:, 2])
-
-
-SHAPES = {
-    "bumpy": "bumpy sphere r = 1 + 0.1 sin5x sin5y sin5z",
-    "sphere": "unit sphere",
-}
-
-
-def surface_points(n: int, seed: int = 0, shape: str = "bumpy", chunk: int = 1 << 20):
-    """``n`` random points on a smooth closed surface, in random order (reproducible).
-
-    Directions are normalised standard normal vectors (uniform on the
-    sphere), drawn in chunks to keep the memory low; ``'bumpy'`` modulates
-    the radius smoothly (:func:`bumpy_radius`). The rows are then shuffled.
-    """
-    if shape not in SHAPES:
-        raise ValueError(f"shape must be one of {sorted(SHAPES)}, got {shape!r}")
-    rng = np.random.default_rng(seed)
-    out = np.empty((n, 3))
-    for lo in range(0, n, chunk):
-        d = rng.normal(size=(min(chunk, n - lo), 3))
-        d /= np.linalg.norm(d, axis=1)[:, None]
-        if shape == "bumpy":
-            d *= bumpy_radius(d)[:, None]
-        out[lo : lo + len(d)] = d
-    return out[rng.permutation(n)]
-
-
-def data_label(n: int, shape: str, seed: int) -> str:
-    """How the points of a row were made."""
-    return f"{SHAPES[shape]}, {size_label(n)} random points (seed {seed}, shuffled)"
-
-
-def digest(*arrays) -> str:
-    """sha256 of arrays (dtype, shape and bytes)."""
-    h = hashlib.sha256()
-    for a in arrays:
-        a = np.ascontiguousarray(a)
-        h.update(str((a.dtype.str, a.shape)).encode())
-        h.update(a.tobytes())
-    return h.hexdigest()
-
-
-# -- machine ---------------------------------------------------------------------
-
-
-def _read(path: str) -> str:
-    try:
-        with open(path) as f:
-            return f.read()
-    except OSError:
-        return ""
-
-
-def machine_info() -> dict:
-    """Cores, CPU, memory, load and library versions."""
-    import numba
-    import scipy
-
-    import fancloud_vtk
-
-    cpu = next((line.split(":", 1)[1].strip() for line in _read("/proc/cpuinfo").splitlines()
-                if line.startswith("model name")), platform.processor() or "unknown")
-    mem = next((int(line.split()[1]) * 1024 for line in _read("/proc/meminfo").splitlines()
-                if line.startswith("MemTotal")), None)
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - not Linux
-        usable = os.cpu_count()
-    return {
-        "cpu": cpu,
-        "cores": os.cpu_count(),
-        "cores_usable": usable,
-        "memory_bytes": mem,
-        "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None,
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "scipy": scipy.__version__,
-        "numba": numba.__version__,
-        "numba_threads": numba.get_num_threads(),
-        "fancloud_vtk": fancloud_vtk.__version__,
-    }
-
-
-# -- memory probes -----------------------------------------------------------------
-
-
-_PAGE = os.sysconf("SC_PAGE_SIZE") if hasattr(os, "sysconf") else 4096
-
-
-def rss_bytes() -> int:
-    """Current resident set size (``/proc/self/statm``)."""
-    with open("/proc/self/statm", "rb") as f:
-        return int(f.read().split()[1]) * _PAGE
-
-
-def maxrss_bytes() -> int:
-    """Peak resident set size so far (``getrusage``; kilobytes on Linux).
-
-    It also keeps the peaks of exited threads (scipy's query workers), which
-    :func:`reset_peak_rss` does not clear; :func:`hwm_bytes` does.
-    """
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-
-
-def hwm_bytes() -> int | None:
-    """Peak resident set size of the address space (``VmHWM`` in ``/proc/self/status``)."""
-    for line in _read("/proc/self/status").splitlines():
-        if line.startswith("VmHWM:"):
-            return int(line.split()[1]) * 1024
-    return None
-
-
-def reset_peak_rss() -> bool:
-    """Reset the kernel's peak-RSS mark ``VmHWM`` (Linux ``clear_refs`` 5); True if it worked."""
-    try:
-        with open("/proc/self/clear_refs", "w") as f:
-            f.write("5")
-    except OSError:
-        return False
-    hwm = hwm_bytes()
-    return hwm is not None and hwm <= rss_bytes() + (1 << 20)
-
-
-class RssSampler(threading.Thread):
-    """Samples the RSS every ``interval`` seconds in the background; keeps the peak.
-
-    Code holding the GIL (numba kernels without ``nogil``) starves it, so the
-    peak from ``getrusage`` is taken as well (see :func:`_child_memory`).
-    """
-
-    def __init__(self, interval: float = SAMPLE_INTERVAL):
-        super().__init__(daemon=True)
-        self.interval = interval
-        self.peak = rss_bytes()
-        self.samples = 0
-        self._stop_event = threading.Event()
-
-    def run(self):
-        fd = os.open("/proc/self/statm", os.O_RDONLY)
-        try:
-            while not self._stop_event.is_set():
-                self.peak = max(self.peak, int(os.pread(fd, 128, 0).split()[1]) * _PAGE)
-                self.samples += 1
-                time.sleep(self.interval)
-        finally:
-            os.close(fd)
-
-    def stop(self) -> int:
-        """Stop sampling (one last sample first); the peak in bytes."""
-        self.peak = max(self.peak, rss_bytes())
-        self._stop_event.set()
-        self.join()
-        return self.peak
-
-
-# -- subprocesses ------------------------------------------------------------------
-
-
-_CHILD = (
-    "import sys; from fancloud_vtk.bench import _child_main; sys.exit(_child_main(sys.argv[1:]))"
+from fancloud_vtk.bench.common import (
+    WARMUP_POINTS,
+    K,
+    _log,
+    _short,
+    data_label,
+    parse_size,
+    size_label,
+    surface_points,
 )
-
-#: First call in a fresh process: nothing of fancloud_vtk is imported before the clock starts.
-_FIRST_CALL = """
-import json, sys, time
-import numpy as np
-n, k = int(sys.argv[1]), int(sys.argv[2])
-rng = np.random.default_rng(0)
-p = rng.normal(size=(n, 3))
-p /= np.linalg.norm(p, axis=1)[:, None]
-t0 = time.perf_counter()
-from fancloud_vtk import build_fans
-t1 = time.perf_counter()
-build_fans(p, k=k)
-t2 = time.perf_counter()
-build_fans(p, k=k)
-t3 = time.perf_counter()
-print(json.dumps({"import": t1 - t0, "first": t2 - t1, "second": t3 - t2}))
-"""
-
-
-def _child_env(**extra) -> dict:
-    """The environment of a subprocess: this package first on the path, plus ``extra``."""
-    env = dict(os.environ)
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (root, env.get("PYTHONPATH")) if p)
-    env.update({key: str(value) for key, value in extra.items()})
-    return env
-
-
-def run_python(code: str, args: list[str], env: dict) -> dict:
-    """Run ``python -c code args`` in a fresh process; its last stdout line as JSON."""
-    proc = subprocess.run([sys.executable, "-c", code, *args], env=env, capture_output=True,
-                          text=True, timeout=CHILD_TIMEOUT, check=False)
-    lines = proc.stdout.strip().splitlines()
-    if proc.returncode != 0 or not lines:
-        raise RuntimeError(f"benchmark subprocess {args[:1]} failed (exit {proc.returncode}):\n"
-                           + proc.stderr[-3000:])
-    return json.loads(lines[-1])
-
-
-def run_child(task: str, params: dict, **env) -> dict:
-    """Run one of the tasks of :func:`_child_main` in a fresh process."""
-    return run_python(_CHILD, [task, json.dumps(params)], _child_env(**env))
-
-
-def _child_memory(n: int, shape: str, seed: int, k: int) -> dict:
-    """Peak RSS during one build_fans call (in a fresh process).
-
-    Three views of the peak: the background sampler (starved while a kernel
-    holds the GIL), ``VmHWM`` reset just before the call (exact, when the
-    reset works) and ``getrusage`` (counts only if it rose during the call).
-    The largest of those that belong to the call is reported.
-    """
-    from fancloud_vtk import build_fans
-
-    pts = surface_points(n, seed, shape)
-    build_fans(surface_points(WARMUP_POINTS, seed + 1, "sphere"), k=k)  # compile / load
-    gc.collect()
-    reset = reset_peak_rss()
-    before = rss_bytes()
-    maxrss_before = maxrss_bytes()
-    sampler = RssSampler()
-    sampler.start()
-    t0 = time.perf_counter()
-    fc = build_fans(pts, k=k)
-    elapsed = time.perf_counter() - t0
-    sampled = sampler.stop()
-    hwm = hwm_bytes() if reset else None
-    maxrss_after = maxrss_bytes()
-    peaks = {"sampler": sampled}
-    if hwm is not None:
-        peaks["VmHWM"] = hwm
-    if maxrss_after > maxrss_before:
-        peaks["getrusage"] = maxrss_after
-    source = max(peaks, key=peaks.get)
-    return {
-        "n": n, "rss_before": before, "sampled_peak": sampled, "samples": sampler.samples,
-        "hwm_reset": reset, "hwm_after": hwm,
-        "maxrss_before": maxrss_before, "maxrss_after": maxrss_after,
-        "peak": peaks[source], "peak_source": source, "peaks": peaks,
-        "rss_after": rss_bytes(), "time": elapsed,
-        "fc_nbytes": fc.nbytes(), "fans_open": fc.n_open,
-    }
-
-
-def _child_hashes(n: int, shape: str, seed: int, k: int, workers: int) -> dict:
-    """sha256 of the fan cloud's arrays (in a fresh process with its own thread count)."""
-    import numba
-
-    from fancloud_vtk import build_fans
-
-    fc = build_fans(surface_points(n, seed, shape), k=k, workers=workers)
-    return {
-        "numba_threads": numba.get_num_threads(),
-        "workers": workers,
-        "offsets": digest(fc.offsets),
-        "ring": digest(fc.ring),
-        "normals": digest(fc.normals),
-        "open": digest(fc.open),
-    }
-
-
-_TASKS = {"memory": _child_memory, "hashes": _child_hashes}
-
-
-def _child_main(argv: list[str]) -> int:
-    """Entry of the subprocesses: ``TASK JSON-PARAMS``; prints the result as JSON."""
-    task, params = argv[0], json.loads(argv[1])
-    print(json.dumps(_TASKS[task](**params)))
-    return 0
-
-
-# -- the measurements of ``bench fans`` ---------------------------------------------------
-
-
-def _log(quiet: bool, message: str) -> None:
-    if not quiet:
-        print(f"[bench] {message}", file=sys.stderr, flush=True)
-
-
-def peer_baseline(points: np.ndarray) -> None:
-    """The peer: scipy's cKDTree and the 7 nearest neighbours of every point, leaf order."""
-    from scipy.spatial import cKDTree
-
-    tree = cKDTree(points)
-    tree.query(points[tree.indices], k=PEER_K, workers=-1)
-
-
-def _timed(fn, *args, **kwargs) -> float:
-    gc.collect()
-    t0 = time.perf_counter()
-    result = fn(*args, **kwargs)
-    elapsed = time.perf_counter() - t0
-    del result
-    return elapsed
-
-
-def measure_speed(points: np.ndarray, repeat: int, budget: float = float("inf")) -> dict:
-    """Interleaved timings (peer, ours, peer, ours, ...) of the peer and build_fans.
-
-    ``repeat`` pairs, fewer if the pairs so far took more than ``budget`` seconds.
-    """
-    from fancloud_vtk import build_fans
-
-    peer, ours = [], []
-    t0 = time.perf_counter()
-    while len(ours) < repeat and (not ours or time.perf_counter() - t0 < budget):
-        peer.append(_timed(peer_baseline, points))
-        ours.append(_timed(build_fans, points, k=K))
-    n = len(points)
-    best_peer, best_ours = min(peer), min(ours)
-    return {
-        "n": n, "peer_times": peer, "ours_times": ours, "peer": best_peer, "ours": best_ours,
-        "ratio": best_ours / best_peer, "throughput": n / best_ours,
-        "peer_throughput": n / best_peer,
-    }
-
-
-def measure_first_call(cold: bool) -> dict:
-    """First build_fans call in fresh processes: numba cache as configured, and empty."""
-    out = {"points": WARMUP_POINTS, "default": run_python(
-        _FIRST_CALL, [str(WARMUP_POINTS), str(K)], _child_env())}
-    if cold:
-        with tempfile.TemporaryDirectory(prefix="fancloud-numba-") as cache:
-            out["cold"] = run_python(_FIRST_CALL, [str(WARMUP_POINTS), str(K)],
-                                     _child_env(NUMBA_CACHE_DIR=cache))
-    default = out["default"]
-    # loading cached machine code takes a fraction of a second; compiling takes many
-    reference = out["cold"]["first"] if cold else None
-    if reference is not None:
-        out["cached"] = default["first"] < 0.25 * reference
-    else:
-        out["cached"] = default["first"] < 20 * max(default["second"], 0.05)
-    return out
-
-
-def open_fraction(points: np.ndarray, **kwargs) -> dict:
-    """Open fans (percent) of build_fans on a closed surface, with its parameters."""
-    import warnings
-
-    from fancloud_vtk import build_fans
-
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        t0 = time.perf_counter()
-        fc = build_fans(points, k=K, **kwargs)
-        elapsed = time.perf_counter() - t0
-    return {
-        "n": fc.n_points, "rule": fc.info["rule"], "fans_open": fc.n_open,
-        "open_pct": 100.0 * fc.n_open / fc.n_points, "time": elapsed,
-        "duplicates_merged": fc.info.get("duplicates_merged", 0),
-        "warnings": [str(w.message) for w in caught],
-    }
-
-
-def measure_quality(points: np.ndarray, label: str) -> list[dict]:
-    """Open fans with the default rule and with the paper's literal rule."""
-    return [{"data": label, **open_fraction(points)},
-            {"data": label, **open_fraction(points, rule="paper")}]
-
-
-def bunny_points() -> tuple[np.ndarray, str]:
-    """The Stanford bunny shipped with pymeshlab (points only) and its label."""
-    from fancloud_vtk.data import bunny_path
-    from fancloud_vtk.io import read_point_cloud
-
-    pts = read_point_cloud(bunny_path()).points
-    return pts, f"Stanford bunny (pymeshlab bunny.obj), {len(pts):,} points"
-
-
-def measure_reproducibility(n: int, shape: str, seed: int, threads: list[int]) -> dict:
-    """Hashes of the rings with different numbers of threads, each in a fresh process."""
-    runs = []
-    for t in threads:
-        workers = 1 if t == 1 else -1
-        runs.append(run_child("hashes", {"n": n, "shape": shape, "seed": seed, "k": K,
-                                         "workers": workers}, NUMBA_NUM_THREADS=t))
-    keys = ("offsets", "ring", "normals", "open")
-    identical = all(all(r[key] == runs[0][key] for key in keys) for r in runs)
-    return {"n": n, "runs": runs, "identical": identical}
-
-
-# -- the table -----------------------------------------------------------------------
-
-
-COLUMNS = ("figure", "data", "parameters", "measured", "unit", "target", "verdict")
-
-
-def _row(figure, data, parameters, measured, unit, target="", verdict="") -> dict:
-    return dict(zip(COLUMNS, (figure, data, parameters, measured, unit, target, verdict),
-                    strict=True))
-
-
-def _ok(passed: bool) -> str:
-    return "yes" if passed else "NO"
-
-
-def _num(x: float) -> str:
-    """A number for the table: 3 significant digits below 1, fewer decimals above."""
-    if abs(x) >= 10_000:
-        return f"{x:,.0f}"
-    if abs(x) >= 100:
-        return f"{x:.0f}"
-    return f"{x:.2f}" if abs(x) >= 1 else f"{x:.3g}"
-
-
-def _peak_note(m: dict) -> str:
-    """Where the peak came from, and the other views of it (B/point above RSS before)."""
-    views = ", ".join(f"{name} {(value - m['rss_before']) / m['n']:.0f}"
-                      for name, value in m["peaks"].items())
-    notes = [f"{m['samples']} samples every {SAMPLE_INTERVAL * 1000:g} ms"]
-    if not m["hwm_reset"]:
-        notes.append("VmHWM reset failed")
-    if "getrusage" not in m["peaks"]:
-        notes.append("getrusage peak predates the call (inherited or earlier)")
-    return f"peak from {m['peak_source']} (views: {views}; {'; '.join(notes)})"
-
-
-def fans_rows(res: dict) -> list[dict]:
-    """The rows of the ``bench fans`` table from the raw results."""
-    rows = []
-    shape, seed, rep = res["args"]["shape"], res["args"]["seed"], res["args"]["repeat"]
-    for s in res["speed"]:
-        data = data_label(s["n"], shape, seed)
-        runs = len(s["ours_times"])
-        best = f"best of {runs}, interleaved peer/ours" + (
-            f" ({rep} asked, time budget reached)" if runs < rep else "")
-        rows += [
-            _row("speed: peer", data,
-                 f"cKDTree(points) + query(points[tree.indices], k={PEER_K}, workers=-1); {best}",
-                 _num(s["peer"]), "s"),
-            _row("speed: build_fans", data, f"build_fans(points, k={K}), compiled; {best}",
-                 _num(s["ours"]), "s"),
-            _row("speed: ratio ours/peer", data, f"k={K}; best times above",
-                 f"{s['ratio']:.3f}", "x", f"<= {TARGET_RATIO}",
-                 _ok(s["ratio"] <= TARGET_RATIO)),
-            _row("speed: throughput build_fans", data, f"k={K}",
-                 _num(s["throughput"]), "points/s"),
-        ]
-    for m in res["memory"]:
-        n = m["n"]
-        data = data_label(n, shape, seed)
-        peak_bpp = (m["peak"] - m["rss_before"]) / n
-        at_target = n == 1_000_000
-        rows += [
-            _row("memory: peak RSS growth during build_fans", data,
-                 f"k={K}, fresh process after warm-up; (peak - RSS before) / n; "
-                 + _peak_note(m),
-                 _num(peak_bpp), "B/point",
-                 f"<= {TARGET_PEAK_BPP:g} (at 1M)" if at_target else "",
-                 _ok(peak_bpp <= TARGET_PEAK_BPP) if at_target else ""),
-            _row("memory: FanCloud.nbytes() / n", data, f"k={K}, no colours",
-                 _num(m["fc_nbytes"] / n), "B/point", f"<= {TARGET_NBYTES_BPP:g}",
-                 _ok(m["fc_nbytes"] / n <= TARGET_NBYTES_BPP)),
-        ]
-    fc = res["first_call"]
-    small = f"unit sphere, {fc['points']:,} random points (seed 0)"
-    d = fc["default"]
-    rows.append(_row(
-        "first call: build_fans", small,
-        f"fresh process, numba cache as configured; import fancloud_vtk {d['import']:.2f} s "
-        f"not included; second call {d['second'] * 1000:.0f} ms",
-        _num(d["first"]), "s", "", "cached" if fc["cached"] else "compiled (cache cold/stale)"))
-    if "cold" in fc:
-        c = fc["cold"]
-        rows.append(_row("first call: build_fans, cold compile", small,
-                         "fresh process, empty NUMBA_CACHE_DIR (compiles every kernel)",
-                         _num(c["first"]), "s", "", "compiled"))
-    for q in res["quality"]:
-        default_rule = q["rule"] == res["default_rule"]
-        rule = f"rule='{q['rule']}'" + (" (default)" if default_rule else " (literal paper rule)")
-        merged = f"; {q['duplicates_merged']} duplicates merged" if q["duplicates_merged"] else ""
-        rows.append(_row("quality: open fans (closed surface)", q["data"],
-                         f"k={K}, {rule}{merged}; {q['fans_open']:,} of {q['n']:,}",
-                         f"{q['open_pct']:.3f}", "%",
-                         f"<= {TARGET_OPEN_PCT:g}" if default_rule else "",
-                         _ok(q["open_pct"] <= TARGET_OPEN_PCT) if default_rule else ""))
-    r = res["reproducibility"]
-    if r is not None:
-        confs = ", ".join(f"NUMBA_NUM_THREADS={x['numba_threads']} workers={x['workers']}"
-                          for x in r["runs"])
-        rows.append(_row("reproducibility: sha256 of offsets, ring, normals, open",
-                         data_label(r["n"], shape, seed),
-                         f"k={K}; fresh processes: {confs}; ring sha256 "
-                         f"{r['runs'][0]['ring'][:12]}",
-                         "identical" if r["identical"] else "different", "", "identical",
-                         _ok(r["identical"])))
-    return rows
-
-
-def table_lines(columns, rows: list[dict]) -> list[str]:
-    """A Markdown table: header, rule and one line per row (``|`` in cells becomes ``/``)."""
-    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
-    for row in rows:
-        lines.append("| " + " | ".join(str(row[c]).replace("|", "/") for c in columns) + " |")
-    return lines
-
-
-def markdown(title: str, res: dict, rows: list[dict], notes=()) -> str:
-    """Title, machine and run information (and ``notes``, one line each), then the table."""
-    m = res["machine"]
-    mem = f"{m['memory_bytes'] / 2**30:.1f} GiB" if m["memory_bytes"] else "unknown"
-    load = ", ".join(f"{x:.2f}" for x in m["load_average"]) if m["load_average"] else "unknown"
-    lines = [
-        f"# {title}",
-        "",
-        f"- machine: {m['cpu']}; {m['cores']} cores ({m['cores_usable']} usable); {mem} RAM; "
-        f"load average at start {load}",
-        f"- software: Python {m['python']}, numpy {m['numpy']}, scipy {m['scipy']}, "
-        f"numba {m['numba']} ({m['numba_threads']} threads), fancloud_vtk {m['fancloud_vtk']}; "
-        f"{m['platform']}",
-        f"- run: `fancloud bench {' '.join(res['argv'])}` on {res['date']}, "
-        f"{res['elapsed']:.0f} s in all",
-        *(f"- {note}" for note in notes),
-        "",
-        *table_lines(COLUMNS, rows),
-    ]
-    return "\n".join(lines) + "\n"
-
-
-def write_outputs(out_dir: str, name: str, text: str, res: dict) -> tuple[str, str]:
-    """``NAME.md`` and ``NAME.json`` in ``out_dir``; their paths."""
-    os.makedirs(out_dir, exist_ok=True)
-    md = os.path.join(out_dir, f"{name}.md")
-    js = os.path.join(out_dir, f"{name}.json")
-    with open(md, "w") as f:
-        f.write(text)
-    with open(js, "w") as f:
-        json.dump(res, f, indent=1, default=str)
-    return md, js
-
-
-def run_fans(args, argv: list[str]) -> dict:
-    """``bench fans``: measure, then write and print the table."""
-    import inspect
-
-    from fancloud_vtk import build_fans
-
-    t_start = time.perf_counter()
-    quiet = args.quiet
-    sizes = parse_sizes("100k") if args.quick else parse_sizes(args.sizes)
-    repeat = 1 if args.quick else args.repeat
-    check_n = parse_size(args.check_size)
-    threads = [int(t) for t in args.threads.split(",") if t.strip()]
-    res = {
-        "argv": ["fans", *argv], "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
-        "args": {"sizes": sizes, "repeat": repeat, "shape": args.shape, "seed": args.seed,
-                 "check_size": check_n, "threads": threads, "k": K},
-        "machine": machine_info(),
-        "default_rule": inspect.signature(build_fans).parameters["rule"].default,
-    }
-
-    _log(quiet, "first call in fresh processes" + (" (incl. a cold compile)" if args.cold_compile
-                                                   else ""))
-    res["first_call"] = measure_first_call(args.cold_compile)
-    build_fans(surface_points(WARMUP_POINTS, args.seed + 1, "sphere"), k=K)  # warm up here
-
-    # memory first: a child inherits the parent's getrusage peak, so keep the parent small
-    res["memory"] = []
-    for n in sizes:
-        m = run_child("memory", {"n": n, "shape": args.shape, "seed": args.seed, "k": K})
-        _log(quiet, f"memory {size_label(n)}: peak +{(m['peak'] - m['rss_before']) / n:.0f} "
-                    f"B/point, nbytes {m['fc_nbytes'] / n:.0f} B/point")
-        res["memory"].append(m)
-
-    res["speed"] = []
-    check_points = None
-    for n in sizes:
-        pts = surface_points(n, args.seed, args.shape)
-        s = measure_speed(pts, repeat, args.budget)
-        _log(quiet, f"speed {size_label(n)}: peer {s['peer']:.3f} s, build_fans "
-                    f"{s['ours']:.3f} s, ratio {s['ratio']:.2f}")
-        res["speed"].append(s)
-        if n == check_n:
-            check_points = pts
-        del pts
-        gc.collect()
-
-    if check_points is None:
-        check_points = surface_points(check_n, args.seed, args.shape)
-    res["quality"] = measure_quality(check_points, data_label(check_n, args.shape, args.seed))
-    del check_points
-    if args.bunny:
-        res["quality"] += measure_quality(*bunny_points())
-    _log(quiet, "quality: " + ", ".join(f"{q['rule']} {q['open_pct']:.3f}% open"
-                                        for q in res["quality"]))
-    res["reproducibility"] = None
-    if threads:
-        res["reproducibility"] = measure_reproducibility(check_n, args.shape, args.seed,
-                                                         threads)
-        _log(quiet, f"reproducibility: identical={res['reproducibility']['identical']}")
-
-    res["elapsed"] = time.perf_counter() - t_start
-    rows = fans_rows(res)
-    res["rows"] = rows
-    text = markdown("fancloud bench fans: fan construction", res, rows)
-    md, js = write_outputs(args.out, "fans", text, res)
-    print(text)
-    print(f"written: {md}, {js}")
-    return res
-
-
-# -- the measurements of ``bench mesh`` -------------------------------------------------
+from fancloud_vtk.bench.harness import run_method
+from fancloud_vtk.bench.metrics import (
+    MeshDistance,
+    mesh_statistics_of,
+    sphere_distance,
+    surface_distance,
+    used_inputs,
+)
+from fancloud_vtk.bench.peers import METHODS, method_for
+from fancloud_vtk.bench.report import (
+    _num,
+    _ok,
+    _row,
+    header,
+    markdown,
+    package_versions,
+    table_lines,
+    write_outputs,
+)
 
 #: The issue's targets for ``bench mesh`` (our method only; the peers are measured, not judged).
 TARGET_NON_MANIFOLD = 0  #: non-manifold edges, and non-manifold vertices
@@ -799,8 +125,6 @@ def parse_data(tokens: list[str], n: int) -> list[tuple[str, int | None]]:
 
 def mesh_data(kind: str, n: int | None, seed: int) -> dict:
     """Points, label and reference surface (a distance function) of one ``--data`` entry."""
-    from fancloud_vtk._bench_peers import MeshDistance, sphere_distance
-
     if kind == "bunny":
         from fancloud_vtk.data import bunny_path
         from fancloud_vtk.io import read_point_cloud
@@ -825,7 +149,6 @@ def corpus_data(entry) -> dict:
     outliers and the median spacing of the input points (the distances'
     unit).
     """
-    from fancloud_vtk._bench_peers import MeshDistance
     from fancloud_vtk.corpus import boundary_edge_count, median_spacing
 
     pts = entry.points
@@ -855,8 +178,6 @@ def measure_mesh(r: dict, data: dict, samples: int, self_intersections: bool,
     table (:func:`_measure_corpus`); then it returns the arrays the render
     needs (:func:`corpus_render`), else None.
     """
-    from fancloud_vtk._bench_peers import mesh_statistics_of, surface_distance
-
     vertices, triangles = r.pop("vertices", None), r.pop("triangles", None)
     if vertices is None:
         return None
@@ -876,22 +197,6 @@ def measure_mesh(r: dict, data: dict, samples: int, self_intersections: bool,
     return None
 
 
-def _used_inputs(points: np.ndarray, vertices: np.ndarray, triangles: np.ndarray,
-                 diag: float) -> np.ndarray:
-    """Which input points are vertices of a triangle (by position: a method may reorder)."""
-    used = np.unique(triangles)
-    if len(vertices) == len(points) and np.array_equal(vertices, points):
-        mask = np.zeros(len(points), dtype=bool)
-        mask[used] = True
-        return mask
-    if len(used) == 0:
-        return np.zeros(len(points), dtype=bool)
-    from scipy.spatial import cKDTree
-
-    d, _ = cKDTree(vertices[used]).query(points, distance_upper_bound=1e-6 * diag + 1e-300)
-    return np.isfinite(d)
-
-
 def _measure_corpus(r: dict, data: dict, vertices, triangles, self_intersections: bool) -> dict:
     """The corpus table's figures of a method's mesh (``r["corpus"]``); the render's arrays.
 
@@ -900,8 +205,6 @@ def _measure_corpus(r: dict, data: dict, vertices, triangles, self_intersections
     points that are no vertex of a triangle, the scan's outliers counted
     apart. Distances in median spacings of the input points.
     """
-    from fancloud_vtk._bench_peers import _short
-
     c, render = {}, {"vertices": vertices, "triangles": triangles}
     spacing = data["corpus"]["spacing"] or 1.0
     stats = r["stats"]
@@ -922,7 +225,7 @@ def _measure_corpus(r: dict, data: dict, vertices, triangles, self_intersections
         stats["self_intersections"] = 0
         c["self_intersecting_faces"] = 0
     if not r["new_points"]:
-        used = _used_inputs(data["points"], vertices, triangles, data["diag"])
+        used = used_inputs(data["points"], vertices, triangles, data["diag"])
         outlier = np.zeros(len(used), dtype=bool)
         outlier[data["outliers"]] = True
         c["unused_points"] = int(np.count_nonzero(~used & ~outlier))
@@ -1194,15 +497,7 @@ def stage_rows(r: dict, n_points: int) -> list[dict]:
 
 def peer_versions() -> dict:
     """Installed versions of the peers' packages (None if not installed)."""
-    from importlib import metadata
-
-    out = {}
-    for pkg in ("meshlib", "pymeshlab", "vtk", "matplotlib"):
-        try:
-            out[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            out[pkg] = None
-    return out
+    return package_versions(("meshlib", "pymeshlab", "vtk", "matplotlib"))
 
 
 def mesh_markdown(res: dict) -> str:
@@ -1477,8 +772,6 @@ def corpus_render(ds: dict, meshes: dict, data: dict, path: str) -> str | None:
 
 def _bench_dataset(data: dict, methods, work: str, args, out_dir: str | None) -> dict:
     """Run every method on one data set, measure; for a corpus entry, render too."""
-    from fancloud_vtk._bench_peers import run_method
-
     pts = data["points"]
     data["diag"] = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
     points_path = os.path.join(work, "points.npy")
@@ -1527,8 +820,6 @@ def _mesh_datasets(specs, seed: int, only=None):
 
 def run_mesh(args, argv: list[str]) -> dict:
     """``bench mesh``: run every method on the same points, measure, write table, JSON, chart."""
-    from fancloud_vtk._bench_peers import method_for
-
     t_start = time.perf_counter()
     specs = parse_data(args.data, parse_size(args.n))
     only = getattr(args, "corpus_entries", None)
@@ -1545,13 +836,13 @@ def run_mesh(args, argv: list[str]) -> dict:
                                  f"{', '.join(sorted(names))}")
     methods = [method_for(m) for m in args.methods]
     res = {
-        "argv": ["mesh", *argv], "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+        **header(["mesh", *argv]),
         "args": {"data": [f"{k}" if m is None else f"{k}:{m}" for k, m in specs],
                  "methods": [m.name for m in methods], "timeout": args.timeout,
                  "repeat": args.repeat, "samples": args.samples, "seed": args.seed,
                  "self_intersections": args.self_intersections, "k": K,
                  "corpus_entries": list(only) if only else None},
-        "machine": machine_info(), "peers": peer_versions(), "datasets": [],
+        "peers": peer_versions(), "datasets": [],
     }
     renders = []
     with tempfile.TemporaryDirectory(prefix="fancloud-bench-mesh-") as work:
@@ -1572,12 +863,7 @@ def run_mesh(args, argv: list[str]) -> dict:
     return res
 
 
-# -- command line ----------------------------------------------------------------------
-
-
-def _cmd_fans(args, argv) -> int:
-    run_fans(args, argv)
-    return 0
+# -- command line ----------------------------------------------------------------------------
 
 
 def _cmd_mesh(args, argv) -> int:
@@ -1585,39 +871,16 @@ def _cmd_mesh(args, argv) -> int:
     return 0
 
 
-def make_parser() -> argparse.ArgumentParser:
-    """``fancloud bench MODE ...``: one subcommand per benchmark."""
-    parser = argparse.ArgumentParser(prog="fancloud bench", description=__doc__.split("\n")[0])
-    sub = parser.add_subparsers(dest="mode", required=True)
+def _method_arg(text: str) -> str:
+    try:
+        method_for(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from exc
+    return text
 
-    p = sub.add_parser("fans", help="fan construction: speed, memory, open fans, threads",
-                       description="Benchmark of build_fans against a cKDTree k-NN baseline.")
-    p.add_argument("--sizes", default="100k,1M,4M",
-                   help="point counts, suffixes k and M (default: %(default)s)")
-    p.add_argument("--repeat", type=int, default=3,
-                   help="timed runs per size, best kept (default: %(default)s)")
-    p.add_argument("--budget", type=float, default=120.0,
-                   help="seconds per size after which no further timed pair is started "
-                        "(default: %(default)s)")
-    p.add_argument("--quick", action="store_true", help="CI smoke run: sizes 100k, repeat 1")
-    p.add_argument("--shape", choices=sorted(SHAPES), default="bumpy",
-                   help="closed surface sampled (default: %(default)s)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
-    p.add_argument("--check-size", default="100k",
-                   help="size for the open-fan and thread checks (default: %(default)s)")
-    p.add_argument("--threads", default="1,2",
-                   help="NUMBA_NUM_THREADS values compared (1 uses workers=1, others -1; "
-                        "empty: skip) (default: %(default)s)")
-    p.add_argument("--cold-compile", action=argparse.BooleanOptionalAction, default=True,
-                   help="also time a compile with an empty numba cache (about 20 s)")
-    p.add_argument("--bunny", action=argparse.BooleanOptionalAction, default=True,
-                   help="open fans on the pymeshlab bunny too")
-    p.add_argument("--out", default="bench_out", help="output folder (default: %(default)s)")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
-    p.set_defaults(func=_cmd_fans)
 
-    from fancloud_vtk._bench_peers import METHODS
-
+def add_parser(sub) -> argparse.ArgumentParser:
+    """Register ``mesh`` on the subparsers of ``fancloud bench``."""
     p = sub.add_parser(
         "mesh", help="triangle meshes: fan_cloud_to_mesh against MeshLib, pymeshlab, VTK",
         description="Every method meshes the same points, each in its own process with a "
@@ -1637,7 +900,7 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--methods", nargs="+", default=list(METHODS), type=_method_arg,
                    metavar="METHOD",
                    help=f"subset of {', '.join(METHODS)}, or module:function loaders "
-                        "(see fancloud_vtk._bench_peers) (default: all)")
+                        "(see fancloud_vtk.bench.peers) (default: all)")
     p.add_argument("--timeout", type=float, default=MESH_TIMEOUT,
                    help="seconds per method and data set, warm-up included; a method still "
                         "running is killed and reported (default: %(default)s)")
@@ -1652,41 +915,4 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", default="bench_out", help="output folder (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
     p.set_defaults(func=_cmd_mesh)
-
-    from fancloud_vtk.bench_reduce import add_parser as add_reduce_parser
-
-    add_reduce_parser(sub)
-
-    from fancloud_vtk.bench_refine import add_parser as add_refine_parser
-
-    add_refine_parser(sub)
-
-    from fancloud_vtk.bench_vdfc import add_parser as add_vdfc_parser
-
-    add_vdfc_parser(sub)
-    return parser
-
-
-def _method_arg(text: str) -> str:
-    from fancloud_vtk._bench_peers import method_for
-
-    try:
-        method_for(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from exc
-    return text
-
-
-def main(argv=None) -> int:
-    """Run a benchmark: ``main(['fans', '--sizes', '100k,1M'])``."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = make_parser().parse_args(argv)
-    if args.repeat < 1:
-        raise ValueError("--repeat must be at least 1")
-    if args.mode == "mesh" and (args.timeout <= 0 or args.samples < 0):
-        raise ValueError("--timeout must be positive and --samples not negative")
-    return args.func(args, argv[1:])
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    return p

@@ -60,13 +60,13 @@ import numba
 import numpy as np
 from numba import njit
 
-from fancloud_vtk.bench import (
-    _log,
+from fancloud_vtk.bench.common import _log
+from fancloud_vtk.bench.harness import timed
+from fancloud_vtk.bench.report import (
     _num,
     _ok,
     _row,
-    _timed,
-    machine_info,
+    header,
     markdown,
     table_lines,
     write_outputs,
@@ -151,10 +151,10 @@ def measure_build(fc, shape, repeat: int, quiet: bool, block: int | None = None)
     fans, plain, blocked, halved = [], [], [], []
     for i in range(repeat):
         _log(quiet, f"  build: run {i + 1} of {repeat}")
-        fans.append(_timed(build_fans, fc.points))
-        plain.append(_timed(ViewDependentFanCloud.build, fc))
-        blocked.append(_timed(ViewDependentFanCloud.build, fc, blocks=blocks))
-        halved.append(_timed(ViewDependentFanCloud.build, fc, blocks=halves))
+        fans.append(timed(build_fans, fc.points))
+        plain.append(timed(ViewDependentFanCloud.build, fc))
+        blocked.append(timed(ViewDependentFanCloud.build, fc, blocks=blocks))
+        halved.append(timed(ViewDependentFanCloud.build, fc, blocks=halves))
     return {"n": fc.n_points, "blocks": len(blocks), "block_shape": [block, block],
             "half_blocks": len(halves), "half_block_shape": [side // 2, shape[1] // 2],
             "build_fans_times": fans, "forest_times": plain, "forest_blocks_times": blocked,
@@ -201,13 +201,15 @@ def build_rows(b: dict, data: str, repeat: int) -> list[dict]:
 def run_frames(vd, cams, e_max: float, d_max: float, quiet: bool,
                superfluous: bool = False) -> dict:
     """The fly-through: per frame the front update time, active points, triangles."""
+    from fancloud_vtk.algorithms.convert import to_vtk
+
     vd.reset_front()
     gc.collect()
     frames = []
     for i, cam in enumerate(cams):
         front = vd.front_arrays(cam, e_max, d_max, superfluous=superfluous)
         t0 = time.perf_counter()
-        front.to_vtk()
+        to_vtk(front)
         ms_vtk = 1e3 * (time.perf_counter() - t0)
         s = front.stats
         frames.append({"frame": i, "ms": 1e3 * s["seconds"], "active": s["active"],
@@ -661,12 +663,11 @@ def run_vdfc(args, argv: list[str]) -> dict:
         raise ValueError("--n must be at least 16, --frames at least 2, --cameras and "
                          "--samples at least 1, --render-frames not negative and --e-max > 0")
     parts = list(dict.fromkeys(args.part))
-    res = {"argv": ["vdfc", *argv], "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+    res = {**header(["vdfc", *argv]),
            "args": {"part": parts, "n": side, "repeat": args.repeat, "frames": n_frames,
                     "e_max": args.e_max, "cameras": args.cameras, "samples": args.samples,
                     "render_frames": args.render_frames, "seed": args.seed},
-           "machine": machine_info(), "build": None, "frames": None, "render": None,
-           "peers": None}
+           "build": None, "frames": None, "render": None, "peers": None}
     _warm(quiet)
     heights, spacing, origin, data = terrain(side)
     fc = terrain_fan_cloud(heights, spacing=spacing, origin=origin)

@@ -12,7 +12,7 @@ input mesh's one-rings (``fan_cloud_of_mesh``) for a mesh, and from the
 points (``build_fans``, timed apart) for the synthetic data, whose peers get
 the mesh ``fan_cloud_to_mesh(build_fans(points))`` made outside the timing.
 Each method runs in its own process with a timeout
-(:func:`fancloud_vtk._bench_peers.run_reduce_method`); a missing, failing,
+(:func:`fancloud_vtk.bench.harness.run_reduce_method`); a missing, failing,
 crashing or hanging method is a row saying so.
 
 Per method and kept fraction: time, kept vertices, the symmetric Hausdorff
@@ -34,19 +34,25 @@ import time
 
 import numpy as np
 
-from fancloud_vtk.bench import (
+from fancloud_vtk.bench.common import (
     WARMUP_POINTS,
     K,
     _log,
-    _num,
-    _ok,
-    _row,
     data_label,
-    machine_info,
-    markdown,
     parse_size,
     size_label,
     surface_points,
+)
+from fancloud_vtk.bench.harness import run_reduce_method, save_reduce_data
+from fancloud_vtk.bench.metrics import FEATURE_FRACTION, Reference, measure_result
+from fancloud_vtk.bench.peers import REDUCE_METHODS, reduce_method_for
+from fancloud_vtk.bench.report import (
+    _num,
+    _ok,
+    _row,
+    header,
+    markdown,
+    package_versions,
     table_lines,
     write_outputs,
 )
@@ -63,7 +69,6 @@ TARGET_COLOUR_RATIO = 1.0  #: colour error ours (with the colour weight) / best 
 #: our methods with the colour weight (only run on data with colour), and their weights
 COLOUR_METHODS = {"ours-colour": "(1,1,50,1)", "ours-colour-distance": "(1,0,0,1)"}
 
-FEATURE_FRACTION = 0.10  #: the most curved share of the input points: the feature region
 DEFAULT_KEEPS = (0.42, 0.176)
 CURVE_KEEPS = (0.1, 0.176, 0.3, 0.42, 0.6)  #: the extra fractions of the error curves ...
 CURVE_MAX_N = 50_000  #: ... on data sets up to this size
@@ -149,157 +154,6 @@ def reduce_data(kind: str, n: int | None, seed: int) -> dict:
             "input": f"the points: ours runs build_fans (k={K}, timed apart) then reduce; the "
                      f"peers get fan_cloud_to_mesh(build_fans(points)) ({len(mesh.triangles):,}"
                      f" triangles, made in {made:.1f} s outside the timing)"}
-
-
-def curvature(points, triangles) -> tuple[np.ndarray, str]:
-    """Per-point curvature of the input and how it was computed.
-
-    pymeshlab's discrete ``ABS Curvature`` (|k1| + |k2|), a measure
-    independent of ours; the entropy's curvature term when pymeshlab fails.
-    """
-    try:
-        import pymeshlab
-
-        ms = pymeshlab.MeshSet()
-        ms.add_mesh(pymeshlab.Mesh(vertex_matrix=np.ascontiguousarray(points, np.float64),
-                                   face_matrix=np.ascontiguousarray(triangles, np.int32)))
-        ms.compute_scalar_by_discrete_curvature_per_vertex(curvaturetype="ABS Curvature")
-        q = np.asarray(ms.current_mesh().vertex_scalar_array(), dtype=np.float64)
-        if len(q) == len(points) and np.isfinite(q).any():
-            return np.nan_to_num(q, nan=0.0), (
-                "pymeshlab compute_scalar_by_discrete_curvature_per_vertex('ABS Curvature')")
-    except Exception:  # pragma: no cover - pymeshlab is a dependency
-        pass
-    from fancloud_vtk import entropy, fan_cloud_of_mesh
-
-    return entropy(fan_cloud_of_mesh(points, triangles)).curv, "fancloud_vtk entropy M_curv"
-
-
-def sample_surface(vertices, triangles, m: int, rng) -> np.ndarray:
-    """``m`` points uniform on a triangle mesh (triangle by area, uniform barycentrics)."""
-    v = np.asarray(vertices, dtype=np.float64)
-    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
-    cum = np.cumsum(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1))
-    idx = np.minimum(np.searchsorted(cum, rng.random(m) * cum[-1], side="right"), len(t) - 1)
-    r1 = np.sqrt(rng.random(m))[:, None]
-    r2 = rng.random(m)[:, None]
-    return (1.0 - r1) * a[idx] + r1 * (1.0 - r2) * b[idx] + r1 * r2 * c[idx]
-
-
-class Reference:
-    """The input surface and what every result is measured against."""
-
-    def __init__(self, data: dict, samples: int, seed: int):
-        from fancloud_vtk._bench_peers import MeshDistance
-
-        pts, tri = data["points"], data["triangles"]
-        self.n = len(pts)
-        self.points, self.triangles = pts, tri
-        self.diag = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
-        self.distance = MeshDistance(pts, tri)
-        self.samples = samples
-        self.seed = seed
-        self.surface = sample_surface(pts, tri, samples * self.n, np.random.default_rng(seed))
-        curv, self.curvature_source = curvature(pts, tri)
-        n_feat = max(1, int(round(FEATURE_FRACTION * self.n)))
-        self.features = np.argsort(-curv, kind="stable")[:n_feat]
-        self.colors = (None if data["colors"] is None  # RGB in [0, 1]
-                       else np.asarray(data["colors"], dtype=np.float64)[:, :3] / 255.0)
-        self._tree = None
-
-    def tree(self):
-        from scipy.spatial import cKDTree
-
-        if self._tree is None:
-            self._tree = cKDTree(self.points)
-        return self._tree
-
-
-def _colour_at(query, vertices, triangles, colors) -> np.ndarray:
-    """Colours at ``query``: barycentric on the nearest point of the mesh (pyvista locator)."""
-    import pyvista as pv
-
-    faces = np.column_stack([np.full(len(triangles), 3), triangles]).ravel()
-    mesh = pv.PolyData(np.asarray(vertices, np.float64), faces)
-    cell, closest = mesh.find_closest_cell(np.asarray(query, np.float64),
-                                           return_closest_point=True)
-    tri = np.asarray(triangles)[cell]
-    a, b, c = (np.asarray(vertices)[tri[:, i]] for i in range(3))
-    v0, v1, v2 = b - a, c - a, closest - a
-    d00, d01, d11 = (v0 * v0).sum(1), (v0 * v1).sum(1), (v1 * v1).sum(1)
-    d20, d21 = (v2 * v0).sum(1), (v2 * v1).sum(1)
-    den = d00 * d11 - d01 * d01
-    den[den == 0] = 1.0
-    w1 = np.clip((d11 * d20 - d01 * d21) / den, 0, 1)
-    w2 = np.clip((d00 * d21 - d01 * d20) / den, 0, 1)
-    w0 = np.clip(1.0 - w1 - w2, 0, 1)
-    w = np.column_stack([w0, w1, w2])
-    w /= np.maximum(w.sum(1, keepdims=True), 1e-300)
-    col = np.asarray(colors, np.float64)[:, :3]
-    return w[:, :1] * col[tri[:, 0]] + w[:, 1:2] * col[tri[:, 1]] + w[:, 2:] * col[tri[:, 2]]
-
-
-def measure_result(r: dict, ref: Reference) -> None:
-    """Kept vertices, Hausdorff, feature and colour errors of one result, in place."""
-    from fancloud_vtk._bench_peers import MeshDistance, surface_distance
-
-    vertices, triangles = r.pop("vertices", None), r.pop("triangles", None)
-    colors, ids = r.pop("colors", None), r.pop("original_id", None)
-    if vertices is None:
-        return
-    t0 = time.perf_counter()
-    triangles = np.asarray(triangles, np.int64).reshape(-1, 3)
-    r["kept"] = len(vertices)
-    r["triangles_out"] = len(triangles)
-    diag = ref.diag
-    m = {"points_only": bool((r.get("info") or {}).get("points_only"))}
-    if not m["points_only"] and len(triangles) == 0:
-        r["message"] += "; its mesh has no triangles: distances not measured"
-        m.update(hausdorff_max=None, hausdorff_mean=None, feature_mean=None, feature_max=None,
-                 how="no triangles")
-    elif m["points_only"]:
-        # one way: the kept points to the input surface; no surface to measure features on
-        d = ref.distance(np.asarray(vertices, np.float64)) if len(vertices) else np.zeros(1)
-        m.update(hausdorff_max=float(d.max()) / diag, hausdorff_mean=float(d.mean()) / diag,
-                 feature_mean=None, feature_max=None,
-                 how="one way: kept points to the input surface (a point set has no surface)")
-    else:
-        r["unreferenced"] = int(len(vertices) - len(np.unique(triangles)))
-        to_result = MeshDistance(vertices, triangles)
-        d_samples = to_result(ref.surface)
-        d_points = to_result(ref.points)
-        back = surface_distance(vertices, triangles, ref.distance, ref.samples * ref.n,
-                                ref.seed + 1)
-        fwd_mean = float(d_samples.mean())
-        fwd_max = max(float(d_samples.max()), float(d_points.max()))
-        feat = d_points[ref.features]
-        m.update(forward_mean=fwd_mean / diag, forward_max=fwd_max / diag,
-                 backward_mean=back["mean"] / diag, backward_max=back["max"] / diag,
-                 hausdorff_max=max(fwd_max, back["max"]) / diag,
-                 hausdorff_mean=0.5 * (fwd_mean + back["mean"]) / diag,
-                 feature_mean=float(feat.mean()) / diag, feature_max=float(feat.max()) / diag,
-                 how="both ways, mean of the two directions' means")
-    if ref.colors is not None and len(vertices) and (m["points_only"] or len(triangles)):
-        if colors is not None and len(colors) == len(vertices):
-            # uint8 from ours, 0..255 floats from pymeshlab (see _bench_peers)
-            vcol = np.asarray(colors, np.float64)[:, :3] / 255.0
-            m["colour_source"] = "carried"
-        else:  # the method drops colours: its vertices take the nearest input point's
-            _, near = ref.tree().query(vertices)
-            vcol, m["colour_source"] = ref.colors[near], "nearest input point"
-        if m["points_only"]:
-            from scipy.spatial import cKDTree
-
-            _, near = cKDTree(vertices).query(ref.points)
-            est = vcol[near]
-        else:
-            est = _colour_at(ref.points, vertices, triangles, vcol)
-        m["colour_rms"] = float(np.sqrt(np.mean((est - ref.colors) ** 2)))
-    if ids is not None and len(ids) == len(vertices):
-        m["vertices_are_input_points"] = bool(np.allclose(vertices, ref.points[ids]))
-    m["time"] = time.perf_counter() - t0
-    r["measures"] = m
 
 
 # -- tables ------------------------------------------------------------------------------
@@ -629,7 +483,6 @@ def render_bunny(meshes: dict, labels: dict, keep: float, path: str) -> str:
 def _warmup_file(path: str, data: dict, seed: int) -> str:
     """A small mesh of the same kind as ``data`` (points or mesh, colours or not)."""
     from fancloud_vtk import build_fans, fan_cloud_to_mesh
-    from fancloud_vtk._bench_peers import save_reduce_data
 
     pts = surface_points(WARMUP_POINTS, seed + 1, "sphere")
     mesh = fan_cloud_to_mesh(build_fans(pts, k=K), self_intersections=False)
@@ -642,15 +495,8 @@ def _warmup_file(path: str, data: dict, seed: int) -> str:
 
 def reduce_versions() -> dict:
     """Installed versions of the peers' packages (None if not installed)."""
-    from importlib import metadata
-
-    out = {}
-    for pkg in ("fast-simplification", "pymeshlab", "vtk", "pyvista", "matplotlib"):
-        try:
-            out[pkg] = metadata.version(pkg)
-        except metadata.PackageNotFoundError:
-            out[pkg] = None
-    return out
+    return package_versions(("fast-simplification", "pymeshlab", "vtk", "pyvista",
+                             "matplotlib"))
 
 
 def _skipped(method, keep: float, target: int, message: str) -> dict:
@@ -661,8 +507,6 @@ def _skipped(method, keep: float, target: int, message: str) -> dict:
 
 def run_reduce(args, argv: list[str]) -> dict:
     """``bench reduce``: every method on every data set and fraction; tables, JSON, figures."""
-    from fancloud_vtk._bench_peers import reduce_method_for, run_reduce_method, save_reduce_data
-
     t_start = time.perf_counter()
     quiet = args.quiet
     if args.timeout <= 0 or args.samples < 1:
@@ -674,16 +518,14 @@ def run_reduce(args, argv: list[str]) -> dict:
     for k in [*keeps, *curve]:
         if not 0 < k <= 1:
             raise ValueError(f"kept fractions must be in (0, 1], got {k:g}")
-    from fancloud_vtk._bench_peers import REDUCE_METHODS
-
     methods = [reduce_method_for(m) for m in (args.methods or list(REDUCE_METHODS))]
     res = {
-        "argv": ["reduce", *argv], "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+        **header(["reduce", *argv]),
         "args": {"data": [k if n is None else f"{k}:{n}" for k, n in specs], "keep": keeps,
                  "curve": curve, "curve_max_n": args.curve_max_n,
                  "methods": [m.name for m in methods], "timeout": args.timeout,
                  "repeat": args.repeat, "samples": args.samples, "seed": args.seed, "k": K},
-        "machine": machine_info(), "peers": reduce_versions(), "datasets": [],
+        "peers": reduce_versions(), "datasets": [],
     }
     renders, render_keep = {}, min(keeps)
     with tempfile.TemporaryDirectory(prefix="fancloud-bench-reduce-") as work:
@@ -749,8 +591,6 @@ def run_reduce(args, argv: list[str]) -> dict:
 
 
 def _method_arg(text: str) -> str:
-    from fancloud_vtk._bench_peers import reduce_method_for
-
     try:
         reduce_method_for(text)
     except ValueError as exc:
@@ -765,8 +605,6 @@ def _cmd_reduce(args, argv) -> int:
 
 def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``reduce`` on the subparsers of ``fancloud bench``."""
-    from fancloud_vtk._bench_peers import REDUCE_METHODS
-
     p = sub.add_parser(
         "reduce", help="reduction: reduce against fast-simplification, pymeshlab, VTK",
         description="Every method reduces the same input to the same vertex count, each in "
@@ -789,7 +627,7 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="largest data set given the curve fractions (default: %(default)s)")
     p.add_argument("--methods", nargs="+", default=None, type=_method_arg, metavar="METHOD",
                    help=f"subset of {', '.join(REDUCE_METHODS)}, or module:function loaders "
-                        "(see fancloud_vtk._bench_peers) (default: all)")
+                        "(see fancloud_vtk.bench.peers) (default: all)")
     p.add_argument("--timeout", type=float, default=REDUCE_TIMEOUT,
                    help="seconds per method and data set, all fractions and the warm-up "
                         "included (default: %(default)s)")

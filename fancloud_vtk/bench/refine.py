@@ -30,26 +30,33 @@ import argparse
 import os
 import time
 
-import numpy as np
-
-from fancloud_vtk.bench import (
+from fancloud_vtk.bench.common import (
     WARMUP_POINTS,
     K,
     _log,
-    _num,
-    _ok,
-    _row,
-    _timed,
     data_label,
-    machine_info,
-    markdown,
     parse_size,
     size_label,
     surface_points,
+)
+from fancloud_vtk.bench.harness import timed
+from fancloud_vtk.bench.metrics import (
+    Reference,
+    measure_result,
+    signed_volume,
+    sphere_distance,
+)
+from fancloud_vtk.bench.reduce import SAMPLES_PER_POINT, reduce_data
+from fancloud_vtk.bench.report import (
+    _num,
+    _ok,
+    _row,
+    header,
+    markdown,
     table_lines,
     write_outputs,
 )
-from fancloud_vtk.bench_reduce import SAMPLES_PER_POINT
+from fancloud_vtk.render import render_panels
 
 #: The issue's targets for ``bench refine``.
 TARGET_SPEED_RATIO = 1.0  #: refine(n -> 2n) time / build_fans(2n) time
@@ -66,21 +73,12 @@ CYCLE_COLUMNS = ("cycle", "points", "reduced to", "triangles", "holes", "reduce 
                  "refine (s)", "Hausdorff max", "Hausdorff mean", "volume change (%)")
 
 
-def signed_volume(vertices, triangles) -> float:
-    """Volume enclosed by an oriented triangle mesh (divergence theorem: sum a.(b x c) / 6)."""
-    v = np.asarray(vertices, dtype=np.float64)
-    t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
-    return float(np.einsum("ij,ij->", a, np.cross(b, c))) / 6.0
-
-
 # -- speed ---------------------------------------------------------------------------------
 
 
 def measure_refine_speed(n: int, repeat: int, seed: int, quiet: bool) -> dict:
     """Best times of build_fans(2n points) and refine(build_fans(n points), factor=2)."""
     from fancloud_vtk import build_fans, refine
-    from fancloud_vtk._bench_peers import sphere_distance
 
     small = build_fans(surface_points(WARMUP_POINTS, seed + 1, "sphere"), k=K)
     refine(small, factor=2)
@@ -90,10 +88,10 @@ def measure_refine_speed(n: int, repeat: int, seed: int, quiet: bool) -> dict:
     fans, plain, exact = [], [], []
     for i in range(repeat):
         _log(quiet, f"  speed {size_label(n)}: run {i + 1} of {repeat}")
-        fans.append(_timed(build_fans, points_2n, k=K))
+        fans.append(timed(build_fans, points_2n, k=K))
         fc = build_fans(points_n, k=K)  # not timed
-        plain.append(_timed(refine, fc, factor=2))
-        exact.append(_timed(refine, fc, factor=2, exact=True))
+        plain.append(timed(refine, fc, factor=2))
+        exact.append(timed(refine, fc, factor=2, exact=True))
     fine = refine(fc, factor=2)
     d = sphere_distance(fine.points[n:])
     return {"n": n, "n_open": int(fc.n_open), "build_fans_times": fans, "refine_times": plain,
@@ -141,7 +139,6 @@ def speed_rows(s: dict, seed: int, repeat: int) -> list[dict]:
 def _state(cycle: int, fc, ref, v0: float, **extra) -> tuple[dict, object]:
     """The measures of one state: mesh it, Hausdorff to the input surface, volume."""
     from fancloud_vtk import fan_cloud_to_mesh
-    from fancloud_vtk.bench_reduce import measure_result
 
     mesh = fan_cloud_to_mesh(fc, self_intersections=False)
     r = {"vertices": mesh.points, "triangles": mesh.triangles, "message": "ok"}
@@ -158,7 +155,6 @@ def _state(cycle: int, fc, ref, v0: float, **extra) -> tuple[dict, object]:
 def run_cycles(cycles: int, keep: float, samples: int, seed: int, quiet: bool) -> dict:
     """``cycles`` reduce-refine cycles of the bunny, every state measured."""
     from fancloud_vtk import build_fans, fan_cloud_of_mesh, fan_cloud_to_mesh, reduce, refine
-    from fancloud_vtk.bench_reduce import Reference, reduce_data
 
     data = reduce_data("bunny", None, seed)
     ref = Reference(data, samples, seed)
@@ -265,8 +261,6 @@ def error_chart(cy: dict, path: str) -> str:
 
 def render_cycles(cy: dict, path: str) -> str:
     """The first state (the input's one-rings, meshed) and the last, side by side."""
-    from fancloud_vtk.demo import render_panels
-
     s0, s1 = cy["states"][0], cy["states"][-1]
     render_panels([(f"input: the bunny's one-rings, meshed ({s0['points']:,} points)",
                     cy["first"]),
@@ -290,10 +284,10 @@ def run_refine(args, argv: list[str]) -> dict:
         raise ValueError("--n must be at least 100, --cycles and --samples at least 1 and "
                          "--keep in (0, 1)")
     parts = list(dict.fromkeys(args.part))
-    res = {"argv": ["refine", *argv], "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+    res = {**header(["refine", *argv]),
            "args": {"part": parts, "n": n, "repeat": args.repeat, "cycles": cycles,
                     "keep": args.keep, "samples": args.samples, "seed": args.seed, "k": K},
-           "machine": machine_info(), "speed": None, "cycles": None}
+           "speed": None, "cycles": None}
     rows, written = [], []
     if "speed" in parts:
         _log(quiet, f"speed: build_fans({size_label(2 * n)}) against refine "
