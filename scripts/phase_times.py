@@ -32,7 +32,8 @@ sys.path.insert(0, str(ROOT))
 #: the kernels each call runs, by module attribute (all called through the module)
 PHASES = {
     "reduce": {
-        "reduction.RK": ["table_from_csr", "build_in_lists", "init_state", "round_candidates",
+        "reduction.CsrK": ["table_from_csr"],
+        "reduction.RK": ["build_in_lists", "init_state", "round_candidates",
                          "accept_batch", "reform_batch", "commit_batch", "update_keys",
                          "reduce_steps", "kept_level"],
         "reduction": ["mean_distance"],
@@ -40,7 +41,8 @@ PHASES = {
     "refine": {
         "refinement.FK": ["update_entropy", "round_candidates", "round_accept", "plan_batch",
                           "commit_batch", "log_batch", "update_cc", "refine_steps"],
-        "refinement.RK": ["table_from_csr", "compact_level"],
+        "refinement.CsrK": ["table_from_csr"],
+        "refinement.RK": ["compact_level"],
         "refinement": ["_delaunay", "mean_distance"],
     },
 }

@@ -7,6 +7,8 @@ from scipy.spatial import cKDTree
 from shapes import cube_surface, distance_to_cube, flat_patch, sphere, torus
 
 from fancloud_vtk import DoubtfulMeshWarning, FanCloud, build_fans, fan_cloud_to_mesh
+from fancloud_vtk.core import _csr_kernels as CsrK
+from fancloud_vtk.core import _edge_kernels as EdgeK
 from fancloud_vtk.core.mesh_stats import boundary_loops
 
 
@@ -155,12 +157,12 @@ def test_bad_input():
 
 def _ring_by_monotone_chain(xs, ys, cand, max_ring):
     """The closed ring as the strict monotone chain finds it (the reference)."""
-    from fancloud_vtk.core._mesh_kernels import _hull_ring
+    from fancloud_vtk.core._ring_kernels import hull_ring
 
     m = len(xs)
     order = np.empty(m + 1, np.int64)
     hull = np.empty(m + 2, np.int64)
-    h = _hull_ring(xs, ys, m, cand, order, hull)
+    h = hull_ring(xs, ys, m, cand, order, hull)
     if h < 3 or h > max_ring:
         return None
     hv = hull[:h]
@@ -175,7 +177,7 @@ def test_closed_ring_gift_wrapping_matches_the_monotone_chain(grid):
     """closed_ring (gift wrapping) finds the same ring as the strict monotone chain: the
     same hull vertices, collinear points on hull edges dropped, the origin strictly inside,
     counter-clockwise from the smallest index; -1 where the chain gives no ring."""
-    from fancloud_vtk.core._mesh_kernels import closed_ring
+    from fancloud_vtk.core._ring_kernels import closed_ring
 
     rng = np.random.default_rng(7)
     n_ring = n_none = 0
@@ -207,13 +209,12 @@ def test_closed_ring_gift_wrapping_matches_the_monotone_chain(grid):
 def _cut_around(fc, mesh, p):
     """The mesh without the triangles at p and its fan neighbours: a hole larger than three
     edges with p and its neighbours inside, unused. Returns (triangles, inner points, cand)."""
-    from fancloud_vtk.core import _mesh_kernels as MK
 
     tri = mesh.triangles
     inner = np.r_[p, fc.neighbours(p)]
     cut = tri[~np.isin(tri, inner).any(axis=1)]
-    edge_uv, _, edge_off, edge_tri = MK.build_edges(tri, fc.n_points)
-    v_edge_off, v_edges = MK.vertex_edges(edge_uv, fc.n_points)
+    edge_uv, _, edge_off, edge_tri = EdgeK.build_edges(tri, fc.n_points)
+    v_edge_off, v_edges = CsrK.vertex_edges(edge_uv, fc.n_points)
     cand = (tri, np.ones(len(tri), np.int64), edge_uv, edge_off, edge_tri, v_edge_off, v_edges)
     return cut, inner, cand
 
@@ -295,9 +296,9 @@ def test_fill_fits_accepts_a_disk_and_refuses_the_three_ways_a_fill_can_break():
     # whose only triangle, 0-2-4, joins 0 and 2 elsewhere
     loop = np.array([0, 1, 2, 3], np.int64)
     mesh = np.array([[0, 2, 4]], np.int64)
-    vt_off, vt = MK.vertex_triangles(mesh, 5)
+    vt_off, vt = CsrK.vertex_triangles(mesh, 5)
     plain = np.zeros((0, 3), np.int64)
-    p_off, p_vt = MK.vertex_triangles(plain, 5)
+    p_off, p_vt = CsrK.vertex_triangles(plain, 5)
 
     def fits(tris, triangles, off, v):
         return bool(MK.fill_fits(np.array(tris, np.int64), loop, triangles, off, v))

@@ -30,7 +30,8 @@ from fancloud_vtk import (
 )
 from fancloud_vtk.algorithms import FanCloudEntropyFilter, FanCloudFilter, FanCloudReduceFilter, run
 from fancloud_vtk.algorithms.convert import fancloud_from_vtk
-from fancloud_vtk.core import _mesh_kernels as MK
+from fancloud_vtk.core import _edge_kernels as EdgeK
+from fancloud_vtk.core import _ring_kernels as RingK
 
 VALENCE = 2000
 CAMERA = ((3.0, -4.0, 2.5), (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 40.0)
@@ -72,7 +73,7 @@ def test_build_edges_fits_any_valence(shape):
     else:
         s = pv.Sphere(theta_resolution=30, phi_resolution=30)
         points, tri = np.asarray(s.points), s.regular_faces.astype(np.int64)
-    edge_uv, tri_edge, edge_off, edge_tri = MK.build_edges(tri, len(points))
+    edge_uv, tri_edge, edge_off, edge_tri = EdgeK.build_edges(tri, len(points))
     np.testing.assert_array_equal(edge_uv, edges_of(tri))
     for j in range(3):
         side = np.sort(np.column_stack([tri[:, j], tri[:, (j + 1) % 3]]), axis=1)
@@ -87,8 +88,8 @@ def test_delaunay_ring_of_a_vertex_of_valence_2000():
     candidates stopped at 255)."""
     points, tri = fan_disc()
     fc = fan_cloud_of_mesh(points, tri)
-    counts, table = MK.delaunay_rings(fc.points, fc.normals, fc.offsets, fc.ring, fc.open,
-                                      VALENCE, 2, np.zeros(0, np.int64), MK.NOT_STEEP)
+    counts, table = RingK.delaunay_rings(fc.points, fc.normals, fc.offsets, fc.ring, fc.open,
+                                      VALENCE, 2, np.zeros(0, np.int64), RingK.NOT_STEEP)
     assert counts[0] == VALENCE
     assert sorted(table[0, :VALENCE]) == list(range(1, VALENCE + 1))
 

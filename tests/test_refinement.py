@@ -19,6 +19,7 @@ from fancloud_vtk import (
     refine_hierarchy,
     save,
 )
+from fancloud_vtk.core import _ring_kernels as RingK
 from fancloud_vtk.core.reduction import laplacian_smooth
 
 
@@ -299,7 +300,6 @@ def test_the_refinements_rings_skip_steep_turned_candidates():
     thin part: projected, it lands next to the point and its inversion would take the place
     of the real neighbours on that side. The refinement's rings skip it; the mesh's and the
     reduction's (``NOT_STEEP``) keep every candidate that faces the same way."""
-    from fancloud_vtk.core import _mesh_kernels as MK
 
     pts = np.array([[0, 0, 0], [1, 0, 0], [0.1, 0, 1.0], [-0.1, 0, 1.0], [0, 1, 0.1]], float)
     nrm = np.array([[0, 0, 1], [0, 0, 1], [1, 0, 0], [0, 0, 1], [0, 0.6, 0.8]], float)
@@ -307,12 +307,12 @@ def test_the_refinements_rings_skip_steep_turned_candidates():
     def kept(steep):
         cand = np.arange(1, 5)
         xs, ys = np.empty(4), np.empty(4)
-        mm = MK.inversions(pts, nrm, 0, cand, 4, xs, ys, steep)
+        mm = RingK.inversions(pts, nrm, 0, cand, 4, xs, ys, steep)
         return set(cand[:mm].tolist())
 
     # 2: 84 degrees up, normal turned 90: skipped; 3: as steep, not turned; 4: turned 37
-    assert kept(MK.STEEP) == {1, 3, 4}
-    assert kept(MK.NOT_STEEP) == {1, 2, 3, 4}
+    assert kept(RingK.STEEP) == {1, 3, 4}
+    assert kept(RingK.NOT_STEEP) == {1, 2, 3, 4}
 
 
 def test_a_named_colour_array_is_interpolated():

@@ -146,12 +146,12 @@ def test_entropy_merge_places_the_weighted_mean_and_half_edge_a_child(terrain):
 
 def _sector_plane_distance(vd, node, x):
     """e(r)'s distance, written out: the plane of the fan triangle whose sector holds x."""
-    from fancloud_vtk.core._mesh_kernels import _tangent
+    from fancloud_vtk.core._geometry_kernels import tangent
 
     r = vd.positions[node]
     n = vd.normals[node]
-    u = np.array(_tangent(*n)[:3])
-    v = np.array(_tangent(*n)[3:])
+    u = np.array(tangent(*n)[:3])
+    v = np.array(tangent(*n)[3:])
     fan = vd.ring[vd.ring_offsets[node]:vd.ring_offsets[node + 1]]
     d = x - r
     if len(fan) < 2:

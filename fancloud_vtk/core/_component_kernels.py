@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from ._geometry_kernels import triangle_cross
+
 
 @njit(cache=True)
 def _find(parent, x):
@@ -55,14 +57,6 @@ def mesh_area(points, triangles):
         a = triangles[t, 0]
         b = triangles[t, 1]
         c = triangles[t, 2]
-        e1x = points[b, 0] - points[a, 0]
-        e1y = points[b, 1] - points[a, 1]
-        e1z = points[b, 2] - points[a, 2]
-        e2x = points[c, 0] - points[a, 0]
-        e2y = points[c, 1] - points[a, 1]
-        e2z = points[c, 2] - points[a, 2]
-        fx = e1y * e2z - e1z * e2y
-        fy = e1z * e2x - e1x * e2z
-        fz = e1x * e2y - e1y * e2x
+        fx, fy, fz = triangle_cross(points, a, b, c)
         out[t] = 0.5 * np.sqrt(fx * fx + fy * fy + fz * fz)
     return out.sum()

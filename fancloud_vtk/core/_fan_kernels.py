@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit, prange
 
 from . import _grid_kernels as G
+from ._geometry_kernels import TWO_PI, atan2_2pi
 
 RULE_COVER = 0
 RULE_PAPER = 1
@@ -46,7 +47,6 @@ STATUS_ROTATED = 1
 STATUS_OPEN = 2
 STATUS_RETRY = 3  # pool exhausted without a valid fan: retry with the exact pool
 
-TWO_PI = 2.0 * np.pi
 
 
 @njit(cache=True)
@@ -137,41 +137,12 @@ def _plane_basis(nx, ny, nz):
 
 
 @njit(cache=True)
-def _atan2_2pi(y, x):
-    """atan2(y, x) wrapped into [0, 2 pi), within 6e-9 rad.
-
-    A polynomial (least-squares minimax fit of degree 17 on [0, 1]) after
-    octant reduction: four to five times faster than libm's atan2, and the
-    same on every machine.
-    """
-    ax = abs(x)
-    ay = abs(y)
-    mx = max(ax, ay)
-    if mx == 0.0:
-        return 0.0
-    a = min(ax, ay) / mx
-    z = a * a
-    r = a * (0.9999998863966367 + z * (-0.3333259708451543 + z * (0.19985907522042068 + z * (
-        -0.1416123391893109 + z * (0.10498961974315275 + z * (-0.07234887860162113 + z * (
-            0.03978155690606187 + z * (-0.014401551037250842 + z * 0.0024567705588792307))))))))
-    if ay > ax:
-        r = 0.5 * np.pi - r
-    if x < 0.0:
-        r = np.pi - r
-    if y < 0.0:
-        r = TWO_PI - r
-        if r >= TWO_PI:
-            r = 0.0
-    return r
-
-
-@njit(cache=True)
 def _angle(points, p, q, ux, uy, uz, vx, vy, vz):
     """Angle in [0, 2 pi) of q's projection around p in the plane spanned by u, v."""
     dx = points[q, 0] - points[p, 0]
     dy = points[q, 1] - points[p, 1]
     dz = points[q, 2] - points[p, 2]
-    return _atan2_2pi(dx * vx + dy * vy + dz * vz, dx * ux + dy * uy + dz * uz)
+    return atan2_2pi(dx * vx + dy * vy + dz * vz, dx * ux + dy * uy + dz * uz)
 
 
 @njit(cache=True)

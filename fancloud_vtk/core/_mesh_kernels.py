@@ -3,6 +3,11 @@
 :mod:`fancloud_vtk.core.mesh` drives them. Triangles are rows of vertex
 indices; an undirected edge ``(u, v)`` with ``u < v`` is packed as
 ``u * n + v`` and numbered by its rank among the sorted packed edges.
+
+The primitives other stages share are beside it, by concept: geometry
+(:mod:`._geometry_kernels`), rings (:mod:`._ring_kernels`, the Delaunay rings
+too), CSR tables (:mod:`._csr_kernels`), the edge table (:mod:`._edge_kernels`)
+and the heap (:mod:`._heap_kernels`).
 """
 
 from __future__ import annotations
@@ -10,48 +15,17 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ._fan_kernels import _atan2_2pi
-
-#: a candidate whose normal makes more than 120 degrees with the point's is on the
-#: other side of a thin part: never a Delaunay neighbour
-FACING = -0.5
-#: the refinement's rings also skip a candidate whose normal is more than 60 degrees from
-#: the point's and that lies more than 70 degrees out of its tangent plane (seen from the
-#: point, over or under it: across a thin part). Projected, it lands next to the point, so
-#: its inversion would shadow the real neighbours on that side (``steep`` of
-#: :func:`inversions`: this ``tan^2`` of the angle; ``NOT_STEEP`` keeps every candidate).
-#: 60 degrees moved new points on a cube's edges up to 1% of the edge (70: 0.8%, as without)
-STEEP = np.tan(np.radians(70.0)) ** 2
-NOT_STEEP = np.inf
-TURNED = 0.5
-
-
-@njit(cache=True)
-def _opposite(points, normals, x, y, u, v):
-    """Whether u and v lie on opposite sides of the line x y, seen along the normals."""
-    nx = normals[x, 0] + normals[y, 0]
-    ny = normals[x, 1] + normals[y, 1]
-    nz = normals[x, 2] + normals[y, 2]
-    ex = points[y, 0] - points[x, 0]
-    ey = points[y, 1] - points[x, 1]
-    ez = points[y, 2] - points[x, 2]
-    # side of w: sign of (e x (w - x)) . n
-    su = 0.0
-    sv = 0.0
-    for k in range(2):
-        w = u if k == 0 else v
-        wx = points[w, 0] - points[x, 0]
-        wy = points[w, 1] - points[x, 1]
-        wz = points[w, 2] - points[x, 2]
-        cx = ey * wz - ez * wy
-        cy = ez * wx - ex * wz
-        cz = ex * wy - ey * wx
-        d = cx * nx + cy * ny + cz * nz
-        if k == 0:
-            su = d
-        else:
-            sv = d
-    return su * sv < 0.0
+from ._csr_kernels import csr_of
+from ._edge_kernels import has_edge
+from ._geometry_kernels import (
+    atan2_2pi,
+    in_plane,
+    min_angle_cos,
+    opposite,
+    tangent,
+    tangent_frames,
+    triangle_cross,
+)
 
 
 @njit(cache=True)
@@ -85,7 +59,7 @@ def _quads_at(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_e
         for j in range(i + 1, edge_off[e + 1]):
             t2 = edge_tri[j]
             v = tri[t2, 0] + tri[t2, 1] + tri[t2, 2] - x - y
-            if u == v or not _opposite(points, normals, x, y, u, v):
+            if u == v or not opposite(points, normals, x, y, u, v):
                 continue
             t3 = _triangle_on(tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, u, v, x)
             t4 = _triangle_on(tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, u, v, y)
@@ -140,49 +114,13 @@ def find_quads(points, normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_
     return out
 
 
-@njit(cache=True)
-def csr_of(rows, n_keys):
-    """Rows grouped by the keys they hold (CSR): (off, idx), idx in increasing row order.
-
-    ``rows`` is (m, k): row r holds k keys in [0, n_keys); key x's rows are
-    ``idx[off[x]:off[x + 1]]`` (a row holding x twice appears twice).
-    """
-    m, k = rows.shape
-    off = np.zeros(n_keys + 1, np.int64)
-    for r in range(m):
-        for j in range(k):
-            off[rows[r, j] + 1] += 1
-    for x in range(n_keys):
-        off[x + 1] += off[x]
-    fill = off[:-1].copy()
-    idx = np.empty(off[n_keys], np.int64)
-    for r in range(m):
-        for j in range(k):
-            x = rows[r, j]
-            idx[fill[x]] = r
-            fill[x] += 1
-    return off, idx
-
-
-@njit(cache=True)
-def vertex_edges(edge_uv, n):
-    """Edges at every vertex (CSR), each vertex's in increasing edge number."""
-    return csr_of(edge_uv, n)
-
-
-@njit(cache=True)
-def vertex_triangles(tri, n):
-    """Triangles at every vertex (CSR), in increasing triangle number."""
-    return csr_of(tri, n)
-
-
 @njit(cache=True, parallel=True)
 def min_angles(points, tri):
     """Smallest angle of every triangle in degrees (0 for a degenerate one)."""
     m = tri.shape[0]
     out = np.empty(m)
     for t in prange(m):
-        cs = _min_angle_cos(points, tri[t, 0], tri[t, 1], tri[t, 2])
+        cs = min_angle_cos(points, tri[t, 0], tri[t, 1], tri[t, 2])
         out[t] = np.degrees(np.arccos(min(max(cs, -1.0), 1.0)))
     return out
 
@@ -243,51 +181,12 @@ def resolve_quads(quads, count, quality, alive, partial):
 
 
 @njit(cache=True)
-def _tangent(nx, ny, nz):
-    """A unit tangent pair (u, v) of the unit normal n, with (u, v, n) right-handed."""
-    if abs(nx) < 0.9:
-        ux, uy, uz = 0.0, nz, -ny
-    else:
-        ux, uy, uz = -nz, 0.0, nx
-    s = np.sqrt(ux * ux + uy * uy + uz * uz)
-    ux /= s
-    uy /= s
-    uz /= s
-    return ux, uy, uz, ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux
-
-
-@njit(cache=True)
-def _in_plane(points, o, q, ux, uy, uz, vx, vy, vz):
-    """Coordinates of q - o in the tangent plane spanned by (u, v)."""
-    dx = points[q, 0] - points[o, 0]
-    dy = points[q, 1] - points[o, 1]
-    dz = points[q, 2] - points[o, 2]
-    return dx * ux + dy * uy + dz * uz, dx * vx + dy * vy + dz * vz
-
-
-@njit(cache=True, parallel=True)
-def tangent_frames(normals):
-    """Per point a unit tangent pair (u, v) with (u, v, n) right-handed: (n, 6)."""
-    n = normals.shape[0]
-    out = np.empty((n, 6))
-    for i in prange(n):
-        ux, uy, uz, vx, vy, vz = _tangent(normals[i, 0], normals[i, 1], normals[i, 2])
-        out[i, 0] = ux
-        out[i, 1] = uy
-        out[i, 2] = uz
-        out[i, 3] = vx
-        out[i, 4] = vy
-        out[i, 5] = vz
-    return out
-
-
-@njit(cache=True)
 def _angle_at(points, frames, v, w):
     """Angle of w around v in v's tangent plane, in [0, 2 pi) (the fast polynomial atan2)."""
     dx = points[w, 0] - points[v, 0]
     dy = points[w, 1] - points[v, 1]
     dz = points[w, 2] - points[v, 2]
-    return _atan2_2pi(
+    return atan2_2pi(
         dx * frames[v, 3] + dy * frames[v, 4] + dz * frames[v, 5],
         dx * frames[v, 0] + dy * frames[v, 1] + dz * frames[v, 2],
     )
@@ -627,305 +526,6 @@ def grow_manifold(
 
 
 @njit(cache=True)
-def _hull_ring(xs, ys, m, idx, order, hull):
-    """Vertices of the convex hull of (xs, ys)[:m], counter-clockwise, into hull.
-
-    Andrew's monotone chain (strict turns: collinear points dropped).
-    Returns the number of hull vertices (-1 for fewer than 3).
-    """
-    for i in range(m):
-        order[i] = i
-    for i in range(1, m):  # insertion sort by (x, y, index)
-        v = order[i]
-        j = i - 1
-        while j >= 0 and (
-            xs[order[j]] > xs[v]
-            or (
-                xs[order[j]] == xs[v]
-                and (ys[order[j]] > ys[v] or (ys[order[j]] == ys[v] and idx[order[j]] > idx[v]))
-            )
-        ):
-            order[j + 1] = order[j]
-            j -= 1
-        order[j + 1] = v
-    h = 0
-    for t in range(m):  # lower hull
-        i = order[t]
-        while h >= 2:
-            a = hull[h - 2]
-            b = hull[h - 1]
-            if (xs[b] - xs[a]) * (ys[i] - ys[a]) - (ys[b] - ys[a]) * (xs[i] - xs[a]) > 0.0:
-                break
-            h -= 1
-        hull[h] = i
-        h += 1
-    lower = h + 1
-    for t in range(m - 2, -1, -1):  # upper hull
-        i = order[t]
-        while h >= lower:
-            a = hull[h - 2]
-            b = hull[h - 1]
-            if (xs[b] - xs[a]) * (ys[i] - ys[a]) - (ys[b] - ys[a]) * (xs[i] - xs[a]) > 0.0:
-                break
-            h -= 1
-        hull[h] = i
-        h += 1
-    h -= 1  # the first point closes the chain
-    if h < 3:
-        return -1
-    return h
-
-
-@njit(cache=True)
-def inversions(points, normals, p, cand, m, xs, ys, steep):
-    """The candidates ``cand[:m]`` in p's tangent plane, inverted: ``q / |q|^2``.
-
-    Candidates on the other side of a thin part (normal at more than 120
-    degrees from p's) or at p itself are dropped, and with a finite
-    ``steep`` (a ``tan^2``; ``STEEP``) those turned by more than 60 degrees
-    that lie steeper than that out of p's tangent plane; the rest are compacted
-    in ``cand`` with their inversions in ``xs``, ``ys``. Returns their
-    number.
-    """
-    ux, uy, uz, vx, vy, vz = _tangent(normals[p, 0], normals[p, 1], normals[p, 2])
-    mm = 0
-    for c in range(m):
-        q = cand[c]
-        dn = (normals[q, 0] * normals[p, 0] + normals[q, 1] * normals[p, 1]
-              + normals[q, 2] * normals[p, 2])
-        if dn < FACING:
-            continue
-        dx = points[q, 0] - points[p, 0]
-        dy = points[q, 1] - points[p, 1]
-        dz = points[q, 2] - points[p, 2]
-        x = dx * ux + dy * uy + dz * uz
-        y = dx * vx + dy * vy + dz * vz
-        r2 = x * x + y * y
-        if r2 <= 0.0:
-            continue
-        h = dx * normals[p, 0] + dy * normals[p, 1] + dz * normals[p, 2]
-        if dn < TURNED and h * h > steep * r2:
-            continue
-        cand[mm] = q
-        xs[mm] = x / r2
-        ys[mm] = y / r2
-        mm += 1
-    return mm
-
-
-@njit(cache=True)
-def closed_ring(xs, ys, mm, cand, hull, max_ring, out):
-    """A closed Delaunay ring into ``out``: the hull vertices of the inversions,
-    counter-clockwise from the smallest point index. -1 if they do not
-    surround the point or are more than ``max_ring``.
-
-    Gift wrapping from the smallest (x, y, index): each next vertex is the
-    candidate with all others on its left (the farthest of collinear ones,
-    so points inside a hull edge are dropped, as in the strict monotone
-    chain of ``_hull_ring``). One pass over the few candidates per ring
-    vertex (about six) costs less than sorting them; at most ``max_ring``
-    passes, so float ties cannot make it loop.
-    """
-    if mm < 3:
-        return -1
-    s = 0
-    for i in range(1, mm):
-        if xs[i] < xs[s] or (xs[i] == xs[s] and (
-                ys[i] < ys[s] or (ys[i] == ys[s] and cand[i] < cand[s]))):
-            s = i
-    h = 0
-    a = s
-    while True:
-        if h == max_ring:
-            return -1
-        hull[h] = a
-        h += 1
-        ax = xs[a]
-        ay = ys[a]
-        b = -1
-        bx = 0.0
-        by = 0.0
-        for c in range(mm):
-            cx = xs[c] - ax
-            cy = ys[c] - ay
-            if cx == 0.0 and cy == 0.0:
-                continue
-            if b < 0:
-                b, bx, by = c, cx, cy
-                continue
-            turn = bx * cy - by * cx
-            if turn < 0.0 or (turn == 0.0 and cx * cx + cy * cy > bx * bx + by * by):
-                b, bx, by = c, cx, cy
-        if b < 0:
-            return -1
-        a = b
-        if a == s:
-            break
-    if h < 3:
-        return -1
-    for t in range(h):  # the origin strictly inside
-        a = hull[t]
-        b = hull[(t + 1) % h]
-        if xs[a] * ys[b] - ys[a] * xs[b] <= 0.0:
-            return -1
-    first = 0
-    for t in range(1, h):
-        if cand[hull[t]] < cand[hull[first]]:
-            first = t
-    for t in range(h):
-        out[t] = cand[hull[(first + t) % h]]
-    return h
-
-
-@njit(cache=True)
-def open_ring(xs, ys, mm, cand, order, hull, max_ring, out):
-    """An open Delaunay fan into ``out`` (a boundary point: its Voronoi cell is unbounded).
-
-    Its neighbours are the hull vertices of the inversions and of the point
-    itself, in order from just after it round to just before it; the point
-    is nudged a hair outward (away from the candidates) so that it stays a
-    hull vertex where the boundary is straight. -1 if there is no such fan.
-    """
-    if mm == 0:
-        return -1
-    sx = 0.0
-    sy = 0.0
-    scale = 0.0
-    for c in range(mm):
-        sx += xs[c]
-        sy += ys[c]
-        scale = max(scale, abs(xs[c]) + abs(ys[c]))
-    s = np.sqrt(sx * sx + sy * sy)
-    cand[mm] = -1
-    if s > 0.0:
-        xs[mm] = -1e-9 * scale * sx / s
-        ys[mm] = -1e-9 * scale * sy / s
-    else:
-        xs[mm] = 0.0
-        ys[mm] = 0.0
-    h = _hull_ring(xs, ys, mm + 1, cand, order, hull)
-    at = -1
-    for t in range(h):
-        if cand[hull[t]] == -1:
-            at = t
-    if at < 0 or h < 3 or h - 1 > max_ring:
-        return -1
-    for t in range(h - 1):
-        out[t] = cand[hull[(at + 1 + t) % h]]
-    return h - 1
-
-
-@njit(cache=True)
-def _delaunay_ring(
-    points, normals, offsets, ring, is_open, p, max_ring, cand, xs, ys, order, hull, stamp, table,
-    steep,
-):
-    """Write p's local Delaunay ring to table[p]; return its size, or -1 (keep the fan's ring).
-
-    ``stamp`` (n,) marks the candidates already taken for p (value p).
-    """
-    cap = cand.shape[0]
-    m = 0
-    stamp[p] = p
-    for a in range(offsets[p], offsets[p + 1]):
-        q = ring[a]
-        for b in range(offsets[q] - 1, offsets[q + 1]):
-            s = q if b < offsets[q] else ring[b]
-            if stamp[s] == p or m >= cap - 1:
-                continue
-            stamp[s] = p
-            cand[m] = s
-            m += 1
-    mm = inversions(points, normals, p, cand, m, xs, ys, steep)
-    if is_open:
-        return open_ring(xs, ys, mm, cand, order, hull, max_ring, table[p])
-    return closed_ring(xs, ys, mm, cand, hull, max_ring, table[p])
-
-
-@njit(cache=True, parallel=True)
-def delaunay_rings(points, normals, offsets, ring, is_open, max_ring, n_chunks, seq, steep):
-    """Each closed fan's ring replaced by its local Delaunay ring.
-
-    The candidates of point p are its fan neighbours and theirs (two rings
-    of the fan cloud: no neighbour search). Projected into p's tangent
-    plane, p's neighbours in their Delaunay triangulation are the points
-    whose inversions ``q / |q|^2`` lie on the convex hull of all
-    inversions, in counter-clockwise order (the polar dual of p's Voronoi
-    cell). Neighbouring points then mostly agree on their triangles. An
-    open fan (a boundary point, unbounded cell) gets the hull vertices of
-    the inversions and p itself, in order from just after p: an open
-    Delaunay fan. A closed fan whose candidates do not surround it keeps
-    its ring. Returns (counts, table): ``table[p, :counts[p]]`` the new
-    ring. The work is split in ``n_chunks`` parts (each with an (n,)
-    scratch array, so a few: about one per thread); the points are taken in
-    the order ``seq`` (empty: 0, 1, ...; a spatial order keeps a point's
-    candidates in the cache from the points before it). The result depends
-    on neither. Fewer than 2**31 points (the stamps are int32). ``steep``:
-    see :func:`inversions`.
-    """
-    n = points.shape[0]
-    counts = np.zeros(n, np.int64)
-    table = np.empty((n, max_ring), np.int64)
-    n_chunks = max(1, min(n, n_chunks))
-    ident = seq.shape[0] == 0
-    # the candidate buffers hold every point's two rings (at least 256 entries, as before)
-    cap = 256
-    for p in range(n):
-        two = 2
-        for a in range(offsets[p], offsets[p + 1]):
-            q = ring[a]
-            two += 1 + offsets[q + 1] - offsets[q]
-        cap = max(cap, two)
-    for ch in prange(n_chunks):
-        cand = np.empty(cap, np.int64)
-        xs = np.empty(cap)
-        ys = np.empty(cap)
-        order = np.empty(cap, np.int64)
-        hull = np.empty(cap + 1, np.int64)
-        stamp = np.full(n, -1, np.int32)
-        for i in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
-            p = i if ident else seq[i]
-            h = _delaunay_ring(
-                points,
-                normals,
-                offsets,
-                ring,
-                is_open[p],
-                p,
-                max_ring,
-                cand,
-                xs,
-                ys,
-                order,
-                hull,
-                stamp,
-                table,
-                steep,
-            )
-            if h < 0:  # keep the fan's own ring
-                h = offsets[p + 1] - offsets[p]
-                for a in range(h):
-                    table[p, a] = ring[offsets[p] + a]
-            counts[p] = h
-    return counts, table
-
-
-@njit(cache=True)
-def compact_rings(counts, table):
-    """The rings ``table[p, :counts[p]]`` as CSR: (offsets, ring)."""
-    n = counts.shape[0]
-    offsets = np.zeros(n + 1, np.int64)
-    for p in range(n):
-        offsets[p + 1] = offsets[p] + counts[p]
-    ring = np.empty(offsets[n], np.int64)
-    for p in range(n):
-        o = offsets[p]
-        for a in range(counts[p]):
-            ring[o + a] = table[p, a]
-    return offsets, ring
-
-
-@njit(cache=True)
 def _root(parent, x):
     while parent[x] != x:
         parent[x] = parent[parent[x]]
@@ -1056,30 +656,6 @@ def split_pinched(triangles, keep, n):
 
 
 @njit(cache=True)
-def _min_angle_cos(points, a, b, c):
-    """The largest cosine of the three angles of a triangle (that of its smallest angle)."""
-    best = -1.0
-    for k in range(3):
-        if k == 0:
-            u, v, w = a, b, c
-        elif k == 1:
-            u, v, w = b, c, a
-        else:
-            u, v, w = c, a, b
-        e1x = points[v, 0] - points[u, 0]
-        e1y = points[v, 1] - points[u, 1]
-        e1z = points[v, 2] - points[u, 2]
-        e2x = points[w, 0] - points[u, 0]
-        e2y = points[w, 1] - points[u, 1]
-        e2z = points[w, 2] - points[u, 2]
-        d = np.sqrt((e1x * e1x + e1y * e1y + e1z * e1z) * (e2x * e2x + e2y * e2y + e2z * e2z))
-        cs = (e1x * e2x + e1y * e2y + e1z * e2z) / d if d > 0.0 else 1.0
-        if cs > best:
-            best = cs
-    return best
-
-
-@njit(cache=True)
 def clip_ears(
     points,
     normals,
@@ -1142,9 +718,9 @@ def clip_ears(
                         break
                 if dup:
                     continue
-                ux, uy, uz, vx, vy, vz = _tangent(normals[b, 0], normals[b, 1], normals[b, 2])
-                ax, ay = _in_plane(points, b, a, ux, uy, uz, vx, vy, vz)
-                cx, cy = _in_plane(points, b, c, ux, uy, uz, vx, vy, vz)
+                ux, uy, uz, vx, vy, vz = tangent(normals[b, 0], normals[b, 1], normals[b, 2])
+                ax, ay = in_plane(points, b, a, ux, uy, uz, vx, vy, vz)
+                cx, cy = in_plane(points, b, c, ux, uy, uz, vx, vy, vz)
                 # convex at b: (b - a) x (c - b) > 0, with b at the origin
                 if (-ax) * cy - (-ay) * cx <= 0.0:
                     continue
@@ -1153,7 +729,7 @@ def clip_ears(
                     q = poly[k]
                     if q == a or q == b or q == c:
                         continue
-                    qx, qy = _in_plane(points, b, q, ux, uy, uz, vx, vy, vz)
+                    qx, qy = in_plane(points, b, q, ux, uy, uz, vx, vy, vz)
                     # inside or on the counter-clockwise triangle a, b(0), c
                     if (
                         (0.0 - ax) * (qy - ay) - (0.0 - ay) * (qx - ax) >= 0.0
@@ -1168,7 +744,7 @@ def clip_ears(
                     cand_tri, edge_off, edge_tri, v_edge_off, v_edges, edge_uv, a, c, b
                 )
                 cnt = cand_count[t_c] if t_c >= 0 else 0
-                cs = _min_angle_cos(points, a, b, c)
+                cs = min_angle_cos(points, a, b, c)
                 if cnt > best_cnt or (cnt == best_cnt and cs < best_cos):
                     best = j
                     best_cnt = cnt
@@ -1190,15 +766,7 @@ def clip_ears(
             m -= 1
         if good:
             a, b, c = poly[0], poly[1], poly[2]
-            e1x = points[b, 0] - points[a, 0]
-            e1y = points[b, 1] - points[a, 1]
-            e1z = points[b, 2] - points[a, 2]
-            e2x = points[c, 0] - points[a, 0]
-            e2y = points[c, 1] - points[a, 1]
-            e2z = points[c, 2] - points[a, 2]
-            fx = e1y * e2z - e1z * e2y
-            fy = e1z * e2x - e1x * e2z
-            fz = e1x * e2y - e1y * e2x
+            fx, fy, fz = triangle_cross(points, a, b, c)
             agree = 0.0
             for v in (a, b, c):
                 agree += fx * normals[v, 0] + fy * normals[v, 1] + fz * normals[v, 2]
@@ -1306,100 +874,6 @@ def distinct_triangles(offsets, ring, is_open):
     return tri, count, n_fan.sum()
 
 
-@njit(cache=True)
-def _local_neighbours(tri, vt_off, vt, u, buf):
-    """Sorted distinct vertices w > u that share a triangle with u, into buf; their number
-    (-1 if buf is full: twice the triangles at u always fit)."""
-    m = 0
-    for i in range(vt_off[u], vt_off[u + 1]):
-        t = vt[i]
-        for k in range(3):
-            w = tri[t, k]
-            if w <= u:
-                continue
-            j = m - 1
-            dup = False
-            while j >= 0 and buf[j] >= w:  # insertion keeps buf sorted
-                if buf[j] == w:
-                    dup = True
-                    break
-                j -= 1
-            if dup:
-                continue
-            if m == buf.shape[0]:
-                return -1
-            for q in range(m, j + 1, -1):
-                buf[q] = buf[q - 1]
-            buf[j + 1] = w
-            m += 1
-    return m
-
-
-@njit(cache=True, parallel=True)
-def build_edges(tri, n):
-    """Undirected edges of triangles: (edge_uv, tri_edge, edge_off, edge_tri).
-
-    Edges are numbered in increasing (u, v), u < v; ``tri_edge[t, j]`` is
-    the edge between ``tri[t, j]`` and ``tri[t, (j + 1) % 3]``;
-    ``edge_tri[edge_off[e]:edge_off[e + 1]]`` the triangles on edge ``e`` in
-    increasing order.
-    """
-    m = tri.shape[0]
-    vt_off, vt = csr_of(tri, n)
-    # a vertex in k triangles has at most 2k neighbours: the buffers fit the largest
-    width = 1
-    for u in range(n):
-        width = max(width, 2 * (vt_off[u + 1] - vt_off[u]))
-    per = np.zeros(n + 1, np.int64)
-    n_chunks = min(max(n, 1), 256)
-    for ch in prange(n_chunks):
-        buf = np.empty(width, np.int64)
-        for u in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
-            per[u + 1] = _local_neighbours(tri, vt_off, vt, u, buf)
-    for u in range(n):
-        per[u + 1] += per[u]
-    n_edges = per[n]
-    edge_uv = np.empty((n_edges, 2), np.int64)
-    tri_edge = np.empty((m, 3), np.int64)
-    for ch in prange(n_chunks):
-        buf = np.empty(width, np.int64)
-        for u in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
-            k = _local_neighbours(tri, vt_off, vt, u, buf)
-            base = per[u]
-            for q in range(k):
-                edge_uv[base + q, 0] = u
-                edge_uv[base + q, 1] = buf[q]
-            for i in range(vt_off[u], vt_off[u + 1]):
-                t = vt[i]
-                for j in range(3):
-                    a = tri[t, j]
-                    b = tri[t, (j + 1) % 3]
-                    if min(a, b) != u:
-                        continue
-                    w = max(a, b)
-                    lo = 0
-                    hi = k - 1
-                    while lo < hi:
-                        mid = (lo + hi) // 2
-                        if buf[mid] < w:
-                            lo = mid + 1
-                        else:
-                            hi = mid
-                    tri_edge[t, j] = base + lo
-    edge_off, edge_tri = csr_of(tri_edge, n_edges)
-    return edge_uv, tri_edge, edge_off, edge_tri
-
-
-@njit(cache=True)
-def has_edge(triangles, vt_off, vt, a, c):
-    """Whether some triangle has the edge a-c (``vt_off``/``vt``: triangles at each vertex)."""
-    for i in range(vt_off[a], vt_off[a + 1]):
-        t = vt[i]
-        if triangles[t, 0] == c or triangles[t, 1] == c or triangles[t, 2] == c:
-            return True
-    return False
-
-
 @njit(cache=True, parallel=True)
 def boundary_loops_manifold(triangles, vt_off, vt, n):
     """Boundary loops of a vertex-manifold mesh: (loop_off, loop_verts).
@@ -1443,27 +917,6 @@ def boundary_loops_manifold(triangles, vt_off, vt, n):
             x = nxt[x]
         loop_off.append(len(verts))
     return np.array(loop_off, np.int64), np.array(verts, np.int64)
-
-
-@njit(cache=True, parallel=True)
-def relabel_rings(offsets, ring, order, rank):
-    """Rings (CSR) of the points taken in ``order``, with indices renamed by ``rank``.
-
-    Point i of the result is point ``order[i]``; ``rank`` is the inverse
-    permutation.
-    """
-    n = order.shape[0]
-    out_off = np.zeros(n + 1, np.int64)
-    for i in range(n):
-        p = order[i]
-        out_off[i + 1] = out_off[i] + offsets[p + 1] - offsets[p]
-    out = np.empty(out_off[n], np.int64)
-    for i in prange(n):
-        p = order[i]
-        o = out_off[i]
-        for j in range(offsets[p], offsets[p + 1]):
-            out[o + j - offsets[p]] = rank[ring[j]]
-    return out_off, out
 
 
 @njit(cache=True, parallel=True)
@@ -1653,7 +1106,7 @@ def star_fits(points, normals, loop, p, triangles, vt_off, vt):
     ``vt_off``/``vt``).
     """
     m = loop.shape[0]
-    ux, uy, uz, vx, vy, vz = _tangent(normals[p, 0], normals[p, 1], normals[p, 2])
+    ux, uy, uz, vx, vy, vz = tangent(normals[p, 0], normals[p, 1], normals[p, 2])
     ang = np.empty(m)
     for j in range(m):
         dx = points[loop[j], 0] - points[p, 0]

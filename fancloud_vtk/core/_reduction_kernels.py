@@ -17,69 +17,42 @@ the fans it changed.
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import get_num_threads, njit, prange
 
 from ._entropy_kernels import point_cc, point_terms
-from ._mesh_kernels import NOT_STEEP, _tangent, closed_ring, inversions, open_ring
+from ._geometry_kernels import tangent
+from ._heap_kernels import heap_update, sift_down
+from ._ring_kernels import NOT_STEEP, closed_ring, inversions, open_ring
 
 METHOD_ENTROPY = 0
 METHOD_ERROR = 1
 INF = np.inf
 
+# -- the state of a reduction, as a few named bundles of arrays -----------------------
+# (numba passes namedtuples of arrays; the kernels unpack them on entry)
 
-# -- indexed binary heap (key, index) ------------------------------------------------
-
-
-@njit(cache=True)
-def _less(key, a, b):
-    return key[a] < key[b] or (key[a] == key[b] and a < b)
-
-
-@njit(cache=True)
-def _sift_up(heap, hpos, key, i):
-    x = heap[i]
-    while i > 0:
-        parent = (i - 1) >> 1
-        y = heap[parent]
-        if not _less(key, x, y):
-            break
-        heap[i] = y
-        hpos[y] = i
-        i = parent
-    heap[i] = x
-    hpos[x] = i
-
-
-@njit(cache=True)
-def _sift_down(heap, hpos, key, i, size):
-    x = heap[i]
-    while True:
-        c = 2 * i + 1
-        if c >= size:
-            break
-        if c + 1 < size and _less(key, heap[c + 1], heap[c]):
-            c += 1
-        y = heap[c]
-        if not _less(key, y, x):
-            break
-        heap[i] = y
-        hpos[y] = i
-        i = c
-    heap[i] = x
-    hpos[x] = i
-
-
-@njit(cache=True)
-def _heap_update(heap, hpos, key, x, value, size):
-    """Set key[x] = value and restore the heap (x must be in the heap)."""
-    old = key[x]
-    key[x] = value
-    i = hpos[x]
-    if value < old:
-        _sift_up(heap, hpos, key, i)
-    else:
-        _sift_down(heap, hpos, key, i, size)
+#: the points in work order: positions, normals and colours ((0, 3) without colour)
+Cloud = namedtuple("Cloud", ["points", "normals", "colors"])
+#: the fans as a table: ring rows (``width`` wide), their lengths, open flags, and which
+#: points are still in the cloud
+FanTable = namedtuple("FanTable", ["R", "rlen", "ropen", "active"])
+#: per point the fans that hold it (rows of ``IN``, ``nin`` of them; ``over``: more than
+#: fit, searched instead)
+InLists = namedtuple("InLists", ["IN", "nin", "over"])
+#: per point the entropy terms and the key the reduction removes by
+Terms = namedtuple("Terms", ["dist", "curv", "cc", "col", "key"])
+#: the log of the removals (the hierarchy): removal order, local-frame detail, the removed
+#: rings, and the old rings of the fans each removal changed; the last five grow
+RemovalLog = namedtuple("RemovalLog", ["order", "detail", "rem_off", "rem_open", "log_off",
+                                       "rem_ring", "ent_x", "ent_open", "ent_off", "ent_ring"])
+#: method 'error': the removed points each remaining point carries (linked lists)
+Carried = namedtuple("Carried", ["head", "nxt"])
+#: what ``reform_batch`` gives for a round's accepted removals ``acc``
+Batch = namedtuple("Batch", ["acc", "buf_off", "buf", "buf_len", "buf_open", "buf_terms", "ok",
+                             "frames"])
 
 
 # -- local frames -------------------------------------------------------------------
@@ -144,7 +117,7 @@ def local_frame(points, nbrs, k, fnx, fny, fnz):
     tz -= d * nz
     t = np.sqrt(tx * tx + ty * ty + tz * tz)
     if t <= 1e-9 * np.sqrt(scale / k) or t == 0.0:
-        tx, ty, tz, _, _, _ = _tangent(nx, ny, nz)
+        tx, ty, tz, _, _, _ = tangent(nx, ny, nz)
     else:
         tx /= t
         ty /= t
@@ -270,7 +243,7 @@ def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, ou
 
     The local Delaunay ring in x's tangent plane: the points whose
     inversions lie on the convex hull of all inversions (see
-    ``_mesh_kernels.delaunay_rings``). A closed fan whose candidates no longer
+    ``_ring_kernels.delaunay_rings``). A closed fan whose candidates no longer
     surround x becomes open. Returns (size, open), size -1 if no fan can be
     formed.
     """
@@ -445,17 +418,22 @@ def init_state(points, normals, colors, R, rlen, w, dbar, method, head, nxt):
 
 
 @njit(cache=True)
-def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, active, IN, nin,
-                 over, dist, curv, cc, col, key, heap, hpos, counters, max_steps, target,
-                 order, detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open,
-                 ent_off, ent_ring, stamp, head, nxt):
+def reduce_steps(cloud, w, dbar, method, fans, inl, terms, heap, hpos, counters, max_steps,
+                 target, log, stamp, carried):
     """Remove up to ``max_steps`` points (never below ``target`` active ones).
 
     ``counters``: [heap size, removals, log entries, ring entries of the log,
-    removed-ring entries, stamp tag]. Returns the (possibly grown) log arrays;
-    the removal stops early when every remaining point is blocked (its key
-    is inf: no fan could be re-formed without it).
+    removed-ring entries, stamp tag]. Returns the (possibly grown) growing log
+    arrays (``rem_ring, ent_x, ent_open, ent_off, ent_ring``); the removal
+    stops early when every remaining point is blocked (its key is inf: no fan
+    could be re-formed without it).
     """
+    points, normals, colors = cloud
+    R, rlen, ropen, active = fans
+    IN, nin, over = inl
+    dist, curv, cc, col, key = terms
+    order, detail, rem_off, rem_open, log_off, rem_ring, ent_x, ent_open, ent_off, ent_ring = log
+    head, nxt = carried
     n = points.shape[0]
     width = R.shape[1]
     cand, xs, ys, ordr, hull = fan_scratch(width)
@@ -497,7 +475,7 @@ def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, activ
             new_len[i] = h
             new_open[i] = op
         if not ok:
-            _heap_update(heap, hpos, key, p, INF, size)
+            heap_update(heap, hpos, key, p, INF, size)
             continue
         # log: the removal, p's ring and frame, the old rings of the fans changed
         r = counters[1]
@@ -538,7 +516,7 @@ def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, activ
         if size > 0 and last != p:
             heap[0] = last
             hpos[last] = 0
-            _sift_down(heap, hpos, key, 0, size)
+            sift_down(heap, hpos, key, 0, size)
         hpos[p] = -1
         for a in range(k):
             _in_remove(IN, nin, over, R[p, a], p)
@@ -573,7 +551,7 @@ def reduce_steps(points, normals, colors, w, dbar, method, R, rlen, ropen, activ
                          y)
             if rlen[y] == 0:
                 value = INF
-            _heap_update(heap, hpos, key, y, value, size)
+            heap_update(heap, hpos, key, y, value, size)
         steps += 1
     counters[0] = size
     return rem_ring, ent_x, ent_open, ent_off, ent_ring
@@ -1046,17 +1024,23 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
     return out
 
 
-def commit_batch(R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len,
-                 buf_open, buf_terms, dist, curv, col, key_now, ok, frames, limit, counters,
-                 order, detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off,
-                 ent_ring, stamp, points, normals, head, nxt, write_logs=True):
+def commit_batch(cloud, fans, inl, terms, batch, key_now, limit, counters, log, stamp, carried,
+                 write_logs=True):
     """Phase B: log (in parallel) and apply (in index order) the removals a round makes.
 
     A point whose fans cannot all be re-formed stays, its key set to inf.
-    The changed fans get their new entropy terms (``buf_terms``; and their
-    keys with ``key_now``). Returns them (each once). ``write_logs`` False:
-    nothing is logged (and the log counters stay; ``frames`` may be empty).
+    The changed fans get their new entropy terms (``batch.buf_terms``; and
+    their keys with ``key_now``). Returns them (each once). ``write_logs``
+    False: nothing is logged (and the log counters stay; ``frames`` may be
+    empty).
     """
+    points, normals, _ = cloud
+    R, rlen, ropen, active = fans
+    IN, nin, over = inl
+    dist, curv, _, col, key = terms
+    acc, buf_off, buf, buf_len, buf_open, buf_terms, ok, frames = batch
+    order, detail, rem_off, rem_open, log_off, rem_ring, ent_x, ent_open, ent_off, ent_ring = log
+    head, nxt = carried
     idx, rem_at, ent_at, ring_at = _plan_commit(rlen, IN, nin, key, acc, ok, limit, counters)
     m = len(idx)
     if write_logs:
@@ -1085,75 +1069,7 @@ def update_keys(points, normals, R, rlen, dist, curv, cc, col, key, w, method, d
         key[y] = INF if rlen[y] == 0 else value
 
 
-@njit(cache=True)
-def heap_of(key, active):
-    """An indexed heap of the active points (the inactive ones after them, outside it)."""
-    n = key.shape[0]
-    heap = np.empty(n, np.int64)
-    hpos = np.empty(n, np.int64)
-    m = 0
-    for x in range(n):
-        if active[x]:
-            heap[m] = x
-            m += 1
-    size = m
-    for x in range(n):
-        if not active[x]:
-            heap[m] = x
-            m += 1
-    for i in range(n):
-        hpos[heap[i]] = i
-    for i in range(size // 2 - 1, -1, -1):
-        _sift_down(heap, hpos, key, i, size)
-    return heap, hpos
-
-
 # -- tables and CSR ----------------------------------------------------------------------
-
-
-@njit(cache=True, parallel=True)
-def table_from_csr(offsets, ring, order, rename, width):
-    """Fan table: row i holds the ring of point ``order[i]``, renamed by ``rename``.
-
-    ``order``/``rename`` of length 0: the identity. Returns (R int32 (n, width), rlen).
-    """
-    n = offsets.shape[0] - 1
-    R = np.zeros((n, width), np.int32)
-    rlen = np.empty(n, np.int64)
-    ident = order.shape[0] == 0
-    for i in prange(n):
-        p = np.int64(i)
-        if not ident:
-            p = order[i]
-        k = offsets[p + 1] - offsets[p]
-        rlen[i] = k
-        for a in range(k):
-            q = ring[offsets[p] + a]
-            if not ident:
-                q = rename[q]
-            R[i, a] = q
-    return R, rlen
-
-
-@njit(cache=True)
-def csr_from_table(R, rlen, active, order):
-    """CSR rings in input order from a table in work order (row i is input point order[i]);
-    inactive points get an empty ring. Returns (offsets, ring) with input indices."""
-    n = R.shape[0]
-    sizes = np.zeros(n, np.int64)
-    for i in range(n):
-        if active[i]:
-            sizes[order[i]] = rlen[i]
-    offsets = np.zeros(n + 1, np.int64)
-    for p in range(n):
-        offsets[p + 1] = offsets[p] + sizes[p]
-    ring = np.empty(offsets[n], np.int64)
-    for i in range(n):
-        if active[i]:
-            at = offsets[order[i]]
-            for a in range(rlen[i]):
-                ring[at + a] = order[R[i, a]]
-    return offsets, ring
 
 
 @njit(cache=True, parallel=True)

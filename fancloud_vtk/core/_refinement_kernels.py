@@ -22,17 +22,17 @@ whose neighbourhoods do not overlap.
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import njit, prange
 
 from ._entropy_kernels import point_cc, point_terms
-from ._mesh_kernels import STEEP, closed_ring, inversions
+from ._heap_kernels import heap_update, sift_down
 from ._reduction_kernels import (
     INF,
     _add,
     _grow,
-    _heap_update,
-    _sift_down,
     _to_frame,
     delaunay_fan,
     fan_scratch,
@@ -40,6 +40,22 @@ from ._reduction_kernels import (
     local_frame,
     lowest_keys,
 )
+from ._ring_kernels import STEEP, closed_ring, inversions
+
+# -- the state of a refinement, as a few named bundles of arrays (and ``RK.Cloud``) ------
+
+#: the fans as a table: ring rows, their lengths, open flags
+Rings = namedtuple("Rings", ["R", "rlen", "ropen"])
+#: per point the entropy terms and the entropy M
+Terms = namedtuple("Terms", ["dist", "curv", "cc", "col", "M"])
+#: the planned insertions of a round (``plan_batch``): the new rings, the fans they change
+#: and their new rings, parents and weights
+Plans = namedtuple("Plans", ["ring_r", "ring_h", "xlist", "xrings", "xlen", "xopen", "n_xs",
+                             "par", "wts"])
+#: the record of the insertions: parents, weights, fans changed per insertion, and the
+#: rings (CSR; the last four grow)
+InsertLog = namedtuple("InsertLog", ["par", "wts", "nx_per", "rr", "rr_off", "ex", "ex_open",
+                                     "ex_off", "er"])
 
 #: at most this many mean-curvature iterations (the cotangent weights are re-read each time)
 MOVE_ITERATIONS = 3
@@ -442,11 +458,14 @@ def _entropy(R, rlen, points, curv, dist, cc, col, M, w, dbar, x):
 
 
 @njit(cache=True)
-def refine_steps(points, normals, colors, R, rlen, ropen, dist, curv, cc, col, M, w, dbar, move,
-                 gap, n_cur, n_final, lg_par, lg_wts, lg_nx, rr, rr_off, ex, ex_open, ex_off, er,
-                 counters, blocked_out):
+def refine_steps(cloud, rings, terms, w, dbar, move, gap, n_cur, n_final, log, counters,
+                 blocked_out):
     """Insert points one at a time, always at the highest entropy (an indexed heap on -M),
     until ``n_final`` points. Returns (points reached, rr, ex, ex_open, ex_off, er)."""
+    points, normals, colors = cloud
+    R, rlen, ropen = rings
+    dist, curv, cc, col, M = terms
+    lg_par, lg_wts, lg_nx, rr, rr_off, ex, ex_open, ex_off, er = log
     n_alloc = points.shape[0]
     width = R.shape[1]
     cand, xs, ys, ordr, hull = fan_scratch(width)
@@ -466,7 +485,7 @@ def refine_steps(points, normals, colors, R, rlen, ropen, dist, curv, cc, col, M
     hpos = np.arange(n_alloc).astype(np.int64)
     size = n_cur
     for i in range(size // 2 - 1, -1, -1):
-        _sift_down(heap, hpos, key, i, size)
+        sift_down(heap, hpos, key, i, size)
     upd = np.empty(width + 1, np.int64)
     n0 = n_cur - counters[3]
     while n_cur < n_final:
@@ -479,7 +498,7 @@ def refine_steps(points, normals, colors, R, rlen, ropen, dist, curv, cc, col, M
                        xs, ys, ordr, hull, c, ring_r, xlist, xrings, xlen, xopen, par, wts)
         if h == 0:
             blocked_out[p] = True
-            _heap_update(heap, hpos, key, p, INF, size)
+            heap_update(heap, hpos, key, p, INF, size)
             continue
         _commit(points, normals, colors, R, rlen, ropen, f, f, ring_r, h, xlist, n_x, xrings,
                 xlen, xopen)
@@ -504,7 +523,7 @@ def refine_steps(points, normals, colors, R, rlen, ropen, dist, curv, cc, col, M
             x = upd[i]
             _entropy(R, rlen, points, curv, dist, cc, col, M, w, dbar, x)
             blocked_out[x] = False
-            _heap_update(heap, hpos, key, x, -M[x] if _eligible(rlen, ropen, x) else INF, size)
+            heap_update(heap, hpos, key, x, -M[x] if _eligible(rlen, ropen, x) else INF, size)
     return n_cur, rr, ex, ex_open, ex_off, er
 
 
@@ -587,11 +606,14 @@ def plan_batch(points, normals, colors, R, rlen, ropen, M, acc, pq, slot0, move,
 
 
 @njit(cache=True, parallel=True)
-def commit_batch(points, normals, colors, R, rlen, ropen, slot0, final, ring_r, ring_h, xlist,
-                 xrings, xlen, xopen, n_xs, dist, curv, col, M, w, blocked):
+def commit_batch(cloud, rings, slot0, final, plans, terms, w, blocked):
     """Commit the planned insertions with ``final[i] >= 0`` (their regions are disjoint): the
     fans, the terms of ``plan_batch``, and, when the weight of M_cc is 0, the entropies
     (else ``update_cc`` follows); the changed points are unblocked."""
+    points, normals, colors = cloud
+    R, rlen, ropen = rings
+    ring_r, ring_h, xlist, xrings, xlen, xopen, n_xs, _, _ = plans
+    dist, curv, _, col, M = terms
     no_cc = not w[2] > 0.0
     for i in prange(final.shape[0]):
         f = final[i]

@@ -37,7 +37,8 @@ try:  # the huge-page hint below needs numba's code generation internals
 except ImportError:  # pragma: no cover - other numba versions: no hint
     intrinsic = None
 
-from ._mesh_kernels import _min_angle_cos, _opposite, _tangent, resolve_quads
+from ._geometry_kernels import min_angle_cos, opposite, tangent
+from ._mesh_kernels import resolve_quads
 
 MERGE_ENTROPY = 0
 MERGE_HALF_EDGE = 1
@@ -334,7 +335,7 @@ def _sorted_ring(F, s, nbrs, k, is_open, out, ang):
 
     An open fan starts after its widest angular gap. ``ang``: scratch of k floats.
     """
-    ux, uy, uz, vx, vy, vz = _tangent(F[s, 3], F[s, 4], F[s, 5])
+    ux, uy, uz, vx, vy, vz = tangent(F[s, 3], F[s, 4], F[s, 5])
     for a in range(k):
         q = nbrs[a]
         dx = F[q, 0] - F[s, 0]
@@ -874,7 +875,7 @@ def node_errors(pos, nrm, child, ring_off, ring, is_open, order, lo, hi, nodes):
             f0 = ring_off[r]
             k = ring_off[r + 1] - f0
             nx, ny, nz = nrm[r, 0], nrm[r, 1], nrm[r, 2]
-            ux, uy, uz, vx, vy, vz = _tangent(nx, ny, nz)
+            ux, uy, uz, vx, vy, vz = tangent(nx, ny, nz)
             for j in range(k):
                 fan[j] = ring[f0 + j]
             for j in range(k):
@@ -1426,8 +1427,8 @@ def front_superfluous(pos, nrm, tri, held, n_chunks):
                                 continue
                             # a convex quad: each diagonal separates the other's ends
                             # (else u v x or u v y covers what x y u + x y v do not)
-                            if not _opposite(pos, nrm, x, y, u, v) \
-                                    or not _opposite(pos, nrm, u, v, x, y):
+                            if not opposite(pos, nrm, x, y, u, v) \
+                                    or not opposite(pos, nrm, u, v, x, y):
                                 continue
                             found[c, 0] = t1
                             found[c, 1] = t2
@@ -1452,7 +1453,7 @@ def front_superfluous(pos, nrm, tri, held, n_chunks):
         for k in range(4):
             t = rows[q, k]
             if t >= 0:
-                quality[t] = -_min_angle_cos(pos, tri[t, 0], tri[t, 1], tri[t, 2])
+                quality[t] = -min_angle_cos(pos, tri[t, 0], tri[t, 1], tri[t, 2])
     alive = np.ones(m, np.bool_)
     resolve_quads(rows, held, quality, alive, True)
     return alive

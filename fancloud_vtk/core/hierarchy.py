@@ -23,6 +23,7 @@ import os
 
 import numpy as np
 
+from . import _csr_kernels as CsrK
 from . import _reduction_kernels as RK
 from .fans import build_fans
 from .model import FanCloud
@@ -317,7 +318,7 @@ class Hierarchy:
                     int(np.diff(self.rem_off).max(initial=0)),
                     int(np.diff(self.ent_off).max(initial=0)), 1)
         none = np.zeros(0, np.int64)
-        R, rlen = RK.table_from_csr(self.coarse_off, self.coarse_ring, none, none, width)
+        R, rlen = CsrK.table_from_csr(self.coarse_off, self.coarse_ring, none, none, width)
         ropen = self.coarse_open.copy()
         active = np.ones(n, bool)
         active[self.order] = False

@@ -57,7 +57,10 @@ import numba
 import numpy as np
 
 from . import _component_kernels as CK
+from . import _csr_kernels as CsrK
+from . import _edge_kernels as EdgeK
 from . import _mesh_kernels as MK
+from . import _ring_kernels as RingK
 from .model import FanCloud
 
 #: largest Delaunay ring kept (a point keeps its fan's ring past that); on
@@ -233,7 +236,7 @@ def fan_cloud_to_mesh(
     t0 = time.perf_counter()
     if rings == "delaunay":
         width = max(MAX_RING, int(fancloud.fan_sizes.max(initial=0)))
-        counts, table = MK.delaunay_rings(
+        counts, table = RingK.delaunay_rings(
             fancloud.points,
             fancloud.normals,
             fancloud.offsets,
@@ -242,9 +245,9 @@ def fan_cloud_to_mesh(
             width,
             2 * numba.get_num_threads(),
             np.zeros(0, np.int64),  # already in the grid's order
-            MK.NOT_STEEP,
+            RingK.NOT_STEEP,
         )
-        offsets, ring = MK.compact_rings(counts, table)
+        offsets, ring = RingK.compact_rings(counts, table)
         fans = FanCloud(
             fancloud.points, offsets, ring, fancloud.normals, fancloud.open, fancloud.rotated
         )
@@ -258,8 +261,8 @@ def fan_cloud_to_mesh(
 
     t0 = time.perf_counter()
     quality = MK.min_angles(fancloud.points, tri) / 60.0
-    edge_uv, tri_edge, edge_off, edge_tri = MK.build_edges(tri, n)
-    v_edge_off, v_edges = MK.vertex_edges(edge_uv, n)
+    edge_uv, tri_edge, edge_off, edge_tri = EdgeK.build_edges(tri, n)
+    v_edge_off, v_edges = CsrK.vertex_edges(edge_uv, n)
     quads = MK.find_quads(
         fancloud.points, fancloud.normals, tri, edge_uv, edge_off, edge_tri, v_edge_off, v_edges
     )
@@ -368,7 +371,7 @@ def _spatial_order(fc: FanCloud):
 
     grid = _Grid(fc.points)
     order = grid.order
-    offsets, ring = MK.relabel_rings(fc.offsets, fc.ring, order, grid.pos)
+    offsets, ring = RingK.relabel_rings(fc.offsets, fc.ring, order, grid.pos)
     return order, FanCloud(
         grid.sorted_points, offsets, ring, fc.normals[order], fc.open[order], fc.rotated[order]
     )
@@ -438,7 +441,7 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, max_diameter=0.0, roun
     # the retries do not close leaves less, and the widening is then undone
     best = None
     for last in range(rounds - 1, -1, -1):
-        vt_off, vt = MK.vertex_triangles(triangles, n)
+        vt_off, vt = CsrK.vertex_triangles(triangles, n)
         loop_off, loop_verts = MK.boundary_loops_manifold(triangles, vt_off, vt, n)
         sizes = np.diff(loop_off)
         if len(sizes) == 0:
@@ -524,7 +527,7 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, max_diameter=0.0, roun
         triangles = triangles[keep]
     if best is None or _area(fc.points, triangles) >= best[0]:
         return triangles, closed, inserted
-    vt_off, vt = MK.vertex_triangles(triangles, n)
+    vt_off, vt = CsrK.vertex_triangles(triangles, n)
     loop_off, loop_verts = MK.boundary_loops_manifold(triangles, vt_off, vt, n)
     if len(triangles) and not widened[loop_verts].any():
         return triangles, closed, inserted  # the widened holes are closed

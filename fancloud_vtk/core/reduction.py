@@ -19,6 +19,8 @@ import numbers
 
 import numpy as np
 
+from . import _csr_kernels as CsrK
+from . import _heap_kernels as HeapK
 from . import _reduction_kernels as RK
 from ._entropy_kernels import mean_distance
 from .entropy import DEFAULT_WEIGHTS, as_colors, as_fan_cloud, check_weights
@@ -150,7 +152,7 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     nrm = np.ascontiguousarray(fc.normals[perm])
     col = np.ascontiguousarray(rgb[perm]) if rgb is not None else np.zeros((0, 3))
     width = max(MIN_WIDTH, int(fc.fan_sizes.max(initial=0)) + 8)
-    R, rlen = RK.table_from_csr(fc.offsets, fc.ring, perm, rank, width)
+    R, rlen = CsrK.table_from_csr(fc.offsets, fc.ring, perm, rank, width)
     ropen = np.ascontiguousarray(fc.open[perm])
     active = np.ones(n, bool)
     IN, nin, over = RK.build_in_lists(R, rlen, IN_WIDTH, numba.get_num_threads())
@@ -175,26 +177,29 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     stamp = np.zeros(n, np.int64)
     counters = np.array([n, 0, 0, 0, 0, 0], np.int64)
     wa = np.array(w)
+    cloud = RK.Cloud(pts, nrm, col)
+    fans = RK.FanTable(R, rlen, ropen, active)
+    inl = RK.InLists(IN, nin, over)
+    terms = RK.Terms(dist, curv, cc, colt, key)
+    carried = RK.Carried(head, nxt)
+    log = _Logs(order, detail, rem_off, rem_open, log_off, rem_ring, ent_x, ent_open, ent_off,
+                ent_ring)
     if exact:
-        heap, hpos = RK.heap_of(key, active)
+        heap, hpos = HeapK.heap_of(key, active)
         chunk = max(1000, n_remove // 50)
         while counters[1] < n_remove:
             before = counters[1]
-            rem_ring, ent_x, ent_open, ent_off, ent_ring = RK.reduce_steps(
-                pts, nrm, col, wa, dbar, METHODS[method], R, rlen, ropen, active, IN, nin,
-                over, dist, curv, cc, colt, key, heap, hpos, counters, chunk, target, order,
-                detail, rem_off, rem_ring, rem_open, log_off, ent_x, ent_open, ent_off, ent_ring,
-                stamp, head, nxt)
+            log.grown(RK.reduce_steps(cloud, wa, dbar, METHODS[method], fans, inl, terms, heap,
+                                      hpos, counters, chunk, target, log.bundle(), stamp,
+                                      carried))
             _report(progress, counters[1] / max(n_remove, 1), "reduction")
             if counters[1] == before:
                 break  # every remaining point is blocked
     else:
-        log = _Logs(rem_ring, ent_x, ent_open, ent_off, ent_ring)
-        _rounds(pts, nrm, col, wa, dbar, METHODS[method], R, rlen, ropen, active, IN, nin, over,
-                dist, curv, cc, colt, key, counters, n_remove, order, detail, rem_off, rem_open,
-                log_off, log, stamp, progress, head, nxt, logs)
-        rem_ring, ent_x, ent_open, ent_off, ent_ring = (log.rem_ring, log.ent_x, log.ent_open,
-                                                        log.ent_off, log.ent_ring)
+        _rounds(cloud, wa, dbar, METHODS[method], fans, inl, terms, counters, n_remove, log,
+                stamp, progress, carried, logs)
+    rem_ring, ent_x, ent_open, ent_off, ent_ring = (log.rem_ring, log.ent_x, log.ent_open,
+                                                    log.ent_off, log.ent_ring)
     r = int(counters[1])
     if strict and r < n_remove:
         raise FanCloudInputError(
@@ -211,7 +216,7 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
         return level_of(fc.points, fc.normals, pdata, original, fc.rotated, ids, offsets, ring,
                          coarse_open)
     # the coarsest level's fans, and everything renamed back to the input's indices
-    coarse_off, coarse_ring = RK.csr_from_table(R, rlen, active, perm)
+    coarse_off, coarse_ring = CsrK.csr_from_table(R, rlen, active, perm)
     n_ent = int(counters[2])
     h = Hierarchy(
         source=fc,
@@ -240,11 +245,26 @@ ROUND_FRACTION = 1 / 16
 
 
 class _Logs:
-    """The growing log arrays of a reduction in rounds."""
+    """The log arrays of a reduction; the last five grow (:meth:`reserve`, or a kernel that
+    returns them grown: :meth:`grown`)."""
 
-    def __init__(self, rem_ring, ent_x, ent_open, ent_off, ent_ring):
+    def __init__(self, order, detail, rem_off, rem_open, log_off, rem_ring, ent_x, ent_open,
+                 ent_off, ent_ring):
+        self.order, self.detail, self.rem_off = order, detail, rem_off
+        self.rem_open, self.log_off = rem_open, log_off
         self.rem_ring, self.ent_x, self.ent_open = rem_ring, ent_x, ent_open
         self.ent_off, self.ent_ring = ent_off, ent_ring
+
+    def bundle(self) -> RK.RemovalLog:
+        """The arrays as the kernels take them (the current growing arrays)."""
+        return RK.RemovalLog(self.order, self.detail, self.rem_off, self.rem_open,
+                             self.log_off, self.rem_ring, self.ent_x, self.ent_open,
+                             self.ent_off, self.ent_ring)
+
+    def grown(self, arrays) -> None:
+        """Take the growing arrays a kernel returned (``rem_ring, ent_x, ent_open, ent_off,
+        ent_ring``)."""
+        self.rem_ring, self.ent_x, self.ent_open, self.ent_off, self.ent_ring = arrays
 
     @staticmethod
     def _fit(arr, need):
@@ -262,15 +282,19 @@ class _Logs:
         self.ent_ring = self._fit(self.ent_ring, counters[3] + n_ent_ring)
 
 
-def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, over, dist, curv,
-            cc, colt, key, counters, n_remove, order, detail, rem_off, rem_open, log_off, logs,
-            stamp, progress, head, nxt, write_logs=True):
+def _rounds(cloud, w, dbar, method, fans, inl, terms, counters, n_remove, logs, stamp, progress,
+            carried, write_logs=True):
     """The reduction in rounds (see ``_reduction_kernels``): each round accepts, lowest key
     first, the candidates whose neighbourhoods do not overlap, and removes them together.
     ``write_logs`` False: the rounds record nothing (the rare one-at-a-time fallback still
     writes its logs, which are then not used)."""
     import numba
 
+    pts, nrm, col = cloud
+    R, rlen, ropen, active = fans
+    IN, nin, over = inl
+    dist, curv, cc, colt, key = terms
+    head, nxt = carried
     n = len(pts)
     n_chunks = 2 * numba.get_num_threads()
     width = R.shape[1]
@@ -285,14 +309,9 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
         acc = RK.accept_batch(cands, R, rlen, IN, nin, over, marks.mark, marks.next_tag())
         if len(acc) == 0:
             # only points with overflowing in-lists left: one at a time
-            heap, hpos = RK.heap_of(key, active)
-            grown = RK.reduce_steps(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN,
-                                    nin, over, dist, curv, cc, colt, key, heap, hpos, counters,
-                                    1, n - n_remove, order, detail, rem_off, logs.rem_ring,
-                                    rem_open, log_off, logs.ent_x, logs.ent_open, logs.ent_off,
-                                    logs.ent_ring, stamp, head, nxt)
-            # the log arrays it may have grown
-            logs.rem_ring, logs.ent_x, logs.ent_open, logs.ent_off, logs.ent_ring = grown
+            heap, hpos = HeapK.heap_of(key, active)
+            logs.grown(RK.reduce_steps(cloud, w, dbar, method, fans, inl, terms, heap, hpos,
+                                       counters, 1, n - n_remove, logs.bundle(), stamp, carried))
             continue
         aff = nin[acc].astype(np.int64)
         buf_off = np.zeros(len(acc) + 1, np.int64)
@@ -303,11 +322,10 @@ def _rounds(pts, nrm, col, w, dbar, method, R, rlen, ropen, active, IN, nin, ove
         buf, buf_len, buf_open, buf_terms, ok, frames = RK.reform_batch(
             pts, nrm, col, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
             write_logs, cc, w, key_now)
-        changed = RK.commit_batch(
-            R, rlen, ropen, active, IN, nin, over, key, acc, buf_off, buf, buf_len, buf_open,
-            buf_terms, dist, curv, colt, key_now, ok, frames, n_remove - counters[1], counters,
-            order, detail, rem_off, logs.rem_ring, rem_open, log_off, logs.ent_x, logs.ent_open,
-            logs.ent_off, logs.ent_ring, stamp, pts, nrm, head, nxt, write_logs)
+        batch = RK.Batch(acc, buf_off, buf, buf_len, buf_open, buf_terms, ok, frames)
+        changed = RK.commit_batch(cloud, fans, inl, terms, batch, key_now,
+                                  n_remove - counters[1], counters, logs.bundle(), stamp,
+                                  carried, write_logs)
         if not key_now:
             RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, w, method, dbar,
                            changed, head, nxt)

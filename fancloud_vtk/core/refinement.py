@@ -19,8 +19,10 @@ import numbers
 
 import numpy as np
 
+from . import _csr_kernels as CsrK
 from . import _reduction_kernels as RK
 from . import _refinement_kernels as FK
+from . import _ring_kernels as RingK
 from ._entropy_kernels import mean_distance
 from .entropy import as_colors, as_fan_cloud, check_weights
 from .fans import Cancelled, Grid
@@ -97,6 +99,10 @@ class _Log:
         """The growing arrays as the kernels take them."""
         return self.rr, self.rr_off, self.ex, self.ex_open, self.ex_off, self.er
 
+    def bundle(self) -> FK.InsertLog:
+        """The record as the one-at-a-time kernel takes it."""
+        return FK.InsertLog(self.par, self.wts, self.nx_per, *self.arrays_in())
+
     def set(self, arrays):
         self.rr, self.ex, self.ex_open, self.ex_off, self.er = arrays
 
@@ -119,7 +125,7 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, ring
         col[:n0] = rgb
     none = np.zeros(0, np.int64)
     R = np.zeros((n_alloc, width), np.int32)
-    R0, rlen0 = RK.table_from_csr(fc.offsets, fc.ring, none, none, width)
+    R0, rlen0 = CsrK.table_from_csr(fc.offsets, fc.ring, none, none, width)
     R[:n0] = R0
     rlen = np.zeros(n_alloc, np.int64)
     rlen[:n0] = rlen0
@@ -136,14 +142,16 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, ring
     FK.update_entropy(pts, nrm, col, R, rlen, dist, curv, cc, colt, M, wa, dbar, seq)
     blocked = np.zeros(n_alloc, bool)
     log = _Log(m, width)
+    cloud = RK.Cloud(pts, nrm, col)
+    rings = FK.Rings(R, rlen, ropen)
+    terms = FK.Terms(dist, curv, cc, colt, M)
     n_cur = n0
     if exact:
         chunk = max(1000, m // 50)
         while n_cur < target:
             before = n_cur
-            out = FK.refine_steps(pts, nrm, col, R, rlen, ropen, dist, curv, cc, colt, M, wa,
-                                  dbar, move, gap, n_cur, min(target, n_cur + chunk), log.par,
-                                  log.wts, log.nx_per, *log.arrays_in(), log.counters, blocked)
+            out = FK.refine_steps(cloud, rings, terms, wa, dbar, move, gap, n_cur,
+                                  min(target, n_cur + chunk), log.bundle(), log.counters, blocked)
             n_cur = int(out[0])
             log.set(out[1:])
             _report(progress, (n_cur - n0) / max(m, 1), "refinement")
@@ -174,9 +182,9 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, ring
             n_ok = int(ok.sum())
             final = np.full(n_acc, -1, np.int64)
             final[ok] = n_cur + np.arange(n_ok)
-            ring_r, ring_h, xlist, xrings, xlen, xopen, n_xs, par, wts = b
-            FK.commit_batch(pts, nrm, col, R, rlen, ropen, target, final, ring_r, ring_h, xlist,
-                            xrings, xlen, xopen, n_xs, dist, curv, colt, M, wa, blocked)
+            plans = FK.Plans(*b)
+            _, _, xlist, _, _, _, n_xs, par, wts = plans
+            FK.commit_batch(cloud, rings, target, final, plans, terms, wa, blocked)
             log.set(FK.log_batch(R, rlen, ropen, final, xlist, n_xs, par, wts, log.par, log.wts,
                                  log.nx_per, n0, *log.arrays_in(), log.counters, rings))
             n_cur += n_ok
@@ -447,12 +455,11 @@ def _delaunay(fc: FanCloud, seq) -> FanCloud:
     (docs/refinement.md). ``seq``: the points in a spatial order (faster; same rings)."""
     import numba
 
-    from . import _mesh_kernels as MK
 
     width = max(MIN_WIDTH, int(fc.fan_sizes.max(initial=0)))
-    counts, table = MK.delaunay_rings(fc.points, fc.normals, fc.offsets, fc.ring, fc.open, width,
-                                      2 * numba.get_num_threads(), seq, MK.STEEP)
-    offsets, ring = MK.compact_rings(counts, table)
+    counts, table = RingK.delaunay_rings(fc.points, fc.normals, fc.offsets, fc.ring, fc.open, width,
+                                      2 * numba.get_num_threads(), seq, RingK.STEEP)
+    offsets, ring = RingK.compact_rings(counts, table)
     return FanCloud(fc.points, offsets, ring, fc.normals, fc.open, fc.rotated, fc.point_data)
 
 
