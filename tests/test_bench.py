@@ -568,3 +568,21 @@ def test_metrics_import_alone():
                          check=True).stdout
     assert out.strip() == str(["fancloud_vtk.bench", "fancloud_vtk.bench.common",
                                "fancloud_vtk.bench.metrics"])
+
+
+def test_bench_compile_times_a_cold_and_a_cached_run(tmp_path, capsys):
+    # a command that compiles nothing keeps the test short; the plumbing is the same
+    out = tmp_path / "out"
+    assert cli_main(["bench", "compile", "--command=--version", "--out", str(out), "-q"]) == 0
+    res = json.loads((out / "compile.json").read_text())
+    assert set(HEADER_KEYS) <= set(res)
+    assert res["cold"] > 0 and len(res["warm"]) == 1
+    assert res["compile"] == pytest.approx(res["cold"] - res["warm"][0])
+    assert [r["figure"] for r in res["rows"]][-1].startswith("numba compile time")
+    assert "fancloud bench compile" in capsys.readouterr().out
+
+
+def test_bench_compile_reports_a_failing_command(tmp_path, capsys):
+    assert cli_main(["bench", "compile", "--command", "no-such-command", "--out", str(tmp_path),
+                     "-q"]) == 2
+    assert "fancloud no-such-command failed" in capsys.readouterr().err

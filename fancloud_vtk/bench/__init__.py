@@ -50,6 +50,13 @@
     ``vdfc_frames.csv``, ``vdfc_frames.png``, ``frames/frame_*.png`` and
     ``vdfc_peers.png``.
 
+``fancloud bench compile [--command "demo -q --out {tmp}"] [--repeat 1]``
+    What a new user waits for once: the command (by default the demo) run
+    twice in fresh processes with an empty numba cache of its own; the
+    first run compiles the kernels, the second loads them
+    (:mod:`fancloud_vtk.bench.compile`). Writes ``compile.md`` and
+    ``compile.json``.
+
 Everything in the tables is measured in the run; only the targets (the
 issue's figures) are constants. Measurements that need a fresh process
 (first call, memory, thread counts, the peers) run in subprocesses of the
@@ -85,7 +92,7 @@ __all__ = ["K", "WARMUP_POINTS", "main", "make_parser", "parse_size", "parse_siz
            "size_label", "surface_points"]
 
 #: The benchmarks, in the order of ``fancloud bench --help``: modules with ``add_parser(sub)``.
-BENCHMARKS = ("fans", "mesh", "reduce", "refine", "vdfc")
+BENCHMARKS = ("fans", "mesh", "reduce", "refine", "vdfc", "compile")
 
 
 def make_parser() -> argparse.ArgumentParser:
