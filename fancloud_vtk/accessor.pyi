@@ -125,6 +125,7 @@ class FanCloudAccessor:
         method: Literal["entropy", "error"] = "entropy",
         color_array: str = "",
         exact: bool = False,
+        max_spacing: float = 4.0,
         mesh: bool = False,
         progress_bar: bool = False,
     ) -> pv.PolyData:
@@ -171,6 +172,7 @@ class FanCloudAccessor:
         method: Literal["entropy", "error"] = "entropy",
         color_array: str = "",
         exact: bool = False,
+        max_spacing: float = 4.0,
         smooth_iterations: int = 0,
         region: Literal["sphere", "box"] = "sphere",
         region_center: tuple[float, float, float] = (0.0, 0.0, 0.0),

@@ -264,6 +264,11 @@ REDUCE_PARAMS: tuple[Param, ...] = (
     Param("exact", "bool", False,
           "remove strictly one point at a time, lowest key first, from a heap (the paper's "
           "order; slower) instead of in rounds of non-overlapping lowest-key removals"),
+    Param("max_spacing", "float", 4.0,
+          "spacing bound (an addition to the paper): no removal may give a fan an edge longer "
+          "than this many uniform spacings at the target count (and than its longest edge "
+          "before), so no region is left unsampled whatever the weights; 0: no bound",
+          range=(0.0, 1e6)),
     Param("mesh", "bool", False,
           "output the triangle mesh of the reduced fan cloud (fan_cloud_to_mesh) instead of "
           "the fan cloud"),

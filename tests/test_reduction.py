@@ -440,3 +440,60 @@ def test_error_reduction_bounds_the_deviation_of_the_removed_points():
     mesh = fan_cloud_to_mesh(out)
     d = MeshDistance(mesh.points, mesh.triangles)(p)
     assert d.max() <= 2e-3 * np.linalg.norm(p.max(0) - p.min(0))
+
+
+# -- the spacing bound (issue 24): no region is left unsampled, whatever the weights --------
+
+
+def _real_mesh_fans(name):
+    from fancloud_vtk.core.entropy import fan_cloud_of_mesh
+    from fancloud_vtk.data import pymeshlab_sample
+    from fancloud_vtk.io import read_point_cloud
+
+    src = read_point_cloud(pymeshlab_sample(name))
+    return fan_cloud_of_mesh(src.points, src.faces, keep_unreferenced=False)
+
+
+def _gap(fc, small, keep):
+    """The largest distance from an input point to the nearest kept point, in uniform spacings
+    at the target count (the bound's unit)."""
+    from fancloud_vtk.core._entropy_kernels import mean_distance
+
+    h = mean_distance(fc.points, fc.offsets, fc.ring) * np.sqrt(1 / keep)
+    return cKDTree(small.points).query(fc.points)[0].max() / h
+
+
+@pytest.mark.parametrize("name", ["cow.obj", "bunny10k_textured.obj", "airplane.obj"])
+@pytest.mark.parametrize("keep", [0.3, 0.1])
+def test_no_region_is_left_unsampled_on_real_models(name, keep):
+    import warnings
+
+    from fancloud_vtk import UnreferencedVerticesWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnreferencedVerticesWarning)  # the airplane's strays
+        fc = _real_mesh_fans(name)
+    for weights in [(1, 1, 50, 0), (1, 0, 0, 0)]:
+        small = reduce(fc, keep=keep, weights=weights)
+        assert small.n_points == round(keep * fc.n_points)
+        # no new fan edge is longer than 4 spacings (the default bound): every input point
+        # is nearer than that to a kept point (measured: at most 2.4)
+        assert _gap(fc, small, keep) <= 4.0, (name, keep, weights)
+
+
+def test_the_cow_loses_its_body_without_the_bound():
+    """The paper's reduction (no bound) with the default weights empties the cow's flat
+    body (issue 24); the bound keeps it sampled."""
+    fc = _real_mesh_fans("cow.obj")
+    assert _gap(fc, reduce(fc, keep=0.3, max_spacing=0), 0.3) > 4.0
+    assert _gap(fc, reduce(fc, keep=0.3), 0.3) < 2.5
+
+
+def test_max_spacing_is_checked():
+    p = sphere(500, seed=3)
+    fc = build_fans(p)
+    for bad in (-1.0, float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="max_spacing"):
+            reduce(fc, keep=0.5, max_spacing=bad)
+    with pytest.raises(TypeError, match="max_spacing"):
+        reduce(fc, keep=0.5, max_spacing="3")

@@ -238,14 +238,15 @@ def _add(cand, m, z, skip):
 
 
 @njit(cache=True)
-def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, out):
+def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, out, max_edge):
     """x's new ring without p, from x's ring and p's: written to ``out``.
 
     The local Delaunay ring in x's tangent plane: the points whose
     inversions lie on the convex hull of all inversions (see
     ``_ring_kernels.delaunay_rings``). A closed fan whose candidates no longer
     surround x becomes open. Returns (size, open), size -1 if no fan can be
-    formed.
+    formed, or if the new ring has an edge longer than ``max_edge`` and than
+    x's longest edge now (the spacing bound: the removal would leave a gap).
     """
     m = 0
     for a in range(rlen[x]):
@@ -254,8 +255,24 @@ def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, ou
             m = _add(cand, m, s, x)
     for a in range(rlen[p]):
         m = _add(cand, m, R[p, a], x)
-    return delaunay_fan(points, normals, ropen[x], x, cand, m, xs, ys, order, hull, R.shape[1],
-                        NOT_STEEP, out)
+    h, op = delaunay_fan(points, normals, ropen[x], x, cand, m, xs, ys, order, hull,
+                         R.shape[1], NOT_STEEP, out)
+    if h > 0 and max_edge < INF:
+        limit = max_edge * max_edge
+        for a in range(rlen[x]):
+            limit = max(limit, _dist2(points, x, R[x, a]))
+        for a in range(h):
+            if _dist2(points, x, out[a]) > limit:
+                return -1, op
+    return h, op
+
+
+@njit(cache=True)
+def _dist2(points, a, b):
+    dx = points[a, 0] - points[b, 0]
+    dy = points[a, 1] - points[b, 1]
+    dz = points[a, 2] - points[b, 2]
+    return dx * dx + dy * dy + dz * dz
 
 
 @njit(cache=True)
@@ -418,8 +435,8 @@ def init_state(points, normals, colors, R, rlen, w, dbar, method, head, nxt):
 
 
 @njit(cache=True)
-def reduce_steps(cloud, w, dbar, method, fans, inl, terms, heap, hpos, counters, max_steps,
-                 target, log, stamp, carried):
+def reduce_steps(cloud, w, dbar, max_edge, method, fans, inl, terms, heap, hpos, counters,
+                 max_steps, target, log, stamp, carried):
     """Remove up to ``max_steps`` points (never below ``target`` active ones).
 
     ``counters``: [heap size, removals, log entries, ring entries of the log,
@@ -468,7 +485,7 @@ def reduce_steps(cloud, w, dbar, method, fans, inl, terms, heap, hpos, counters,
         for i in range(n_aff):
             x = aff[i]
             h, op = _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, ordr, hull,
-                            new_rings[i])
+                            new_rings[i], max_edge)
             if h < 0:
                 ok = False
                 break
@@ -807,7 +824,7 @@ def accept_batch(cands, R, rlen, IN, nin, over, mark, tag):
 
 @njit(cache=True, parallel=True)
 def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-                 with_frames, cc, w, key_now):
+                 with_frames, cc, w, key_now, max_edge):
     """Phase A: the new fans of every point whose fan contains an accepted point.
 
     Returns (buf, buf_len, buf_open, buf_terms, ok, frames): buf[buf_off[i] +
@@ -836,7 +853,7 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
             for j in range(nin[p]):
                 x = IN[p, j]
                 h, op = _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, ordr,
-                                hull, buf[buf_off[i] + j])
+                                hull, buf[buf_off[i] + j], max_edge)
                 if h < 0:
                     ok[i] = False
                     break

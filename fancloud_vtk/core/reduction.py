@@ -55,13 +55,30 @@ def target_count(n: int, n_points=None, keep=None) -> int:
     return n_points
 
 
+#: the spacing bound's default (:func:`hierarchy`): new fan edges of at most 4 uniform
+#: spacings (3 already cost the cube a corner at 30% on one of three samplings)
+DEFAULT_MAX_SPACING = 4.0
+
+
+def _max_edge(max_spacing, n: int, target: int) -> float:
+    """The longest new fan edge a removal may make, in mean neighbour distances: the bound
+    times the uniform spacing at the target count (inf without a bound)."""
+    if isinstance(max_spacing, bool) or not isinstance(max_spacing, numbers.Real):
+        raise TypeError(f"max_spacing must be a number, got {max_spacing!r}")
+    if not 0.0 <= float(max_spacing) < float("inf"):
+        raise ValueError(f"max_spacing must be a number >= 0 (0: no bound), got {max_spacing!r}")
+    if max_spacing == 0:
+        return float("inf")
+    return float(max_spacing) * float(np.sqrt(n / max(target, 1)))
+
+
 def _report(progress, fraction, message):
     if progress is not None and progress(float(fraction), message):
         raise Cancelled("the reduction was cancelled")
 
 
 def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entropy", colors=None,
-              exact=False, progress=None) -> Hierarchy:
+              exact=False, max_spacing=DEFAULT_MAX_SPACING, progress=None) -> Hierarchy:
     """The removal hierarchy of a fan cloud or triangle mesh, down to ``n_points``.
 
     Parameters
@@ -90,6 +107,15 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
         removing together those whose neighbourhoods do not overlap; the
         same local operations, in parallel and in memory order, several
         times faster (docs/entropy.md).
+    max_spacing : float, default: 4.0
+        The spacing bound (an addition to the paper): no removal may leave a
+        gap. A point is not removed while re-forming a fan without it would
+        give that fan an edge longer than ``max_spacing`` times the uniform
+        spacing at the target count (the mean distance of the fan
+        neighbours times ``sqrt(n / target)``) and longer than the fan's
+        longest edge before. The entropy still decides the order, so flat
+        parts thin out and features stay dense, within the bound.
+        ``0``: no bound (the paper's reduction).
     progress : callable, optional
         ``progress(fraction, message)``; returning True cancels
         (:class:`~fancloud_vtk.Cancelled`).
@@ -121,11 +147,11 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
                          f"at least {MIN_POINTS}")
     target = MIN_POINTS if n_points is None else target_count(fc.n_points, n_points, None)
     return _run(fc, target, n_points is not None, weights, method, colors, exact, progress,
-                logs=True)
+                logs=True, max_spacing=max_spacing)
 
 
 def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact, progress,
-         logs: bool):
+         logs: bool, max_spacing=DEFAULT_MAX_SPACING):
     """The reduction of ``fc`` to ``target`` points: its :class:`Hierarchy` (``logs``), or
     without logs (nothing recorded but the result) the reduced fan cloud itself, which is
     the same as the hierarchy's coarsest level."""
@@ -133,6 +159,7 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     if method not in METHODS:
         raise ValueError(f"method must be 'entropy' or 'error', got {method!r}")
     w = check_weights(weights)
+    max_edge = _max_edge(max_spacing, n, target)
     rgb = as_colors(colors, fc.point_data, n)
     if method == "entropy" and w[3] > 0 and rgb is None:
         raise ValueError(
@@ -142,6 +169,7 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     dbar = mean_distance(fc.points, fc.offsets, fc.ring)
     if not dbar > 0:
         raise FanCloudInputError("the fans have no neighbours at a distance > 0: nothing to reduce")
+    max_edge *= dbar
     _report(progress, 0.0, "reduction: setting up")
     import numba
 
@@ -189,15 +217,16 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
         chunk = max(1000, n_remove // 50)
         while counters[1] < n_remove:
             before = counters[1]
-            log.grown(RK.reduce_steps(cloud, wa, dbar, METHODS[method], fans, inl, terms, heap,
+            log.grown(RK.reduce_steps(cloud, wa, dbar, max_edge, METHODS[method], fans, inl, terms,
+                                      heap,
                                       hpos, counters, chunk, target, log.bundle(), stamp,
                                       carried))
             _report(progress, counters[1] / max(n_remove, 1), "reduction")
             if counters[1] == before:
                 break  # every remaining point is blocked
     else:
-        _rounds(cloud, wa, dbar, METHODS[method], fans, inl, terms, counters, n_remove, log,
-                stamp, progress, carried, logs)
+        _rounds(cloud, wa, dbar, max_edge, METHODS[method], fans, inl, terms, counters,
+                n_remove, log, stamp, progress, carried, logs)
     rem_ring, ent_x, ent_open, ent_off, ent_ring = (log.rem_ring, log.ent_x, log.ent_open,
                                                     log.ent_off, log.ent_ring)
     r = int(counters[1])
@@ -282,8 +311,8 @@ class _Logs:
         self.ent_ring = self._fit(self.ent_ring, counters[3] + n_ent_ring)
 
 
-def _rounds(cloud, w, dbar, method, fans, inl, terms, counters, n_remove, logs, stamp, progress,
-            carried, write_logs=True):
+def _rounds(cloud, w, dbar, max_edge, method, fans, inl, terms, counters, n_remove, logs, stamp,
+            progress, carried, write_logs=True):
     """The reduction in rounds (see ``_reduction_kernels``): each round accepts, lowest key
     first, the candidates whose neighbourhoods do not overlap, and removes them together.
     ``write_logs`` False: the rounds record nothing (the rare one-at-a-time fallback still
@@ -310,7 +339,8 @@ def _rounds(cloud, w, dbar, method, fans, inl, terms, counters, n_remove, logs, 
         if len(acc) == 0:
             # only points with overflowing in-lists left: one at a time
             heap, hpos = HeapK.heap_of(key, active)
-            logs.grown(RK.reduce_steps(cloud, w, dbar, method, fans, inl, terms, heap, hpos,
+            logs.grown(RK.reduce_steps(cloud, w, dbar, max_edge, method, fans, inl, terms, heap,
+                                       hpos,
                                        counters, 1, n - n_remove, logs.bundle(), stamp, carried))
             continue
         aff = nin[acc].astype(np.int64)
@@ -321,7 +351,7 @@ def _rounds(cloud, w, dbar, method, fans, inl, terms, counters, n_remove, logs, 
                          int(buf_off[-1]) * width)
         buf, buf_len, buf_open, buf_terms, ok, frames = RK.reform_batch(
             pts, nrm, col, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-            write_logs, cc, w, key_now)
+            write_logs, cc, w, key_now, max_edge)
         batch = RK.Batch(acc, buf_off, buf, buf_len, buf_open, buf_terms, ok, frames)
         changed = RK.commit_batch(cloud, fans, inl, terms, batch, key_now,
                                   n_remove - counters[1], counters, logs.bundle(), stamp,
@@ -333,7 +363,8 @@ def _rounds(cloud, w, dbar, method, fans, inl, terms, counters, n_remove, logs, 
 
 
 def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, method="entropy",
-           colors=None, exact=False, return_hierarchy=False, progress=None):
+           colors=None, exact=False, max_spacing=DEFAULT_MAX_SPACING, return_hierarchy=False,
+           progress=None):
     """Reduce a fan cloud (or triangle mesh) to ``n_points`` points by entropy (section 5).
 
     Repeatedly removes the point of lowest entropy (or, with
@@ -361,6 +392,10 @@ def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, metho
     exact : bool, default: False
         One point at a time from a heap instead of in rounds (see
         :func:`hierarchy`).
+    max_spacing : float, default: 4.0
+        The spacing bound: no removal leaves a gap wider than this many
+        uniform spacings at the target count (see :func:`hierarchy`; 0: no
+        bound).
     return_hierarchy : bool, default: False
         Also return the :class:`Hierarchy` of the removals.
     progress : callable, optional
@@ -397,8 +432,10 @@ def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, metho
     target = target_count(fc.n_points, n_points, keep)
     if not return_hierarchy:
         # nothing recorded but the result (the hierarchy's coarsest level)
-        return _run(fc, target, True, weights, method, colors, exact, progress, logs=False)
-    h = _run(fc, target, True, weights, method, colors, exact, progress, logs=True)
+        return _run(fc, target, True, weights, method, colors, exact, progress, logs=False,
+                    max_spacing=max_spacing)
+    h = _run(fc, target, True, weights, method, colors, exact, progress, logs=True,
+             max_spacing=max_spacing)
     return h.level(target), h
 
 
