@@ -586,3 +586,15 @@ def test_bench_compile_reports_a_failing_command(tmp_path, capsys):
     assert cli_main(["bench", "compile", "--command", "no-such-command", "--out", str(tmp_path),
                      "-q"]) == 2
     assert "fancloud no-such-command failed" in capsys.readouterr().err
+
+
+def test_a_result_is_written_with_its_header_and_its_rows(tmp_path):
+    from fancloud_vtk.bench.report import header, write_outputs
+
+    res = header(["fans"])
+    with pytest.raises(ValueError, match="rows"):
+        write_outputs(str(tmp_path), "x", "text", res)
+    with pytest.raises(ValueError, match="header keys"):
+        write_outputs(str(tmp_path), "x", "text", {"rows": []})
+    md, js = write_outputs(str(tmp_path), "x", "text", {**res, "rows": []})
+    assert json.loads(Path(js).read_text())["rows"] == []

@@ -319,6 +319,7 @@ def run_refine(args, argv: list[str]) -> dict:
             f"({cy['diag']:.4g}); volume: signed, sum of a.(b x c)/6 over the triangles, "
             "against the volume of fan_cloud_to_mesh(fan_cloud_of_mesh(bunny)); cycle 0 = "
             "that meshed input")
+    res["rows"] = rows
     text = markdown("fancloud bench refine: refinement by entropy (paper section 7)", res, rows,
                     notes)
     if cy is not None:

@@ -174,11 +174,15 @@ def markdown(title: str, res: dict, rows: list[dict], notes=()) -> str:
 def write_outputs(out_dir: str, name: str, text: str, res: dict) -> tuple[str, str]:
     """``NAME.md`` and ``NAME.json`` in ``out_dir``; their paths.
 
-    ``res`` must start with the :func:`header` (machine, software, commit, command, date).
+    ``res`` must start with the :func:`header` (machine, software, commit, command, date)
+    and hold its figures as ``rows`` (the table's rows).
     """
     missing = [key for key in HEADER_KEYS if key not in res]
     if missing:
         raise ValueError(f"the result lacks the header keys {missing} (see report.header)")
+    if not isinstance(res.get("rows"), list):
+        raise ValueError("the result lacks its figures, res['rows'] (what docs/benchmarks.md "
+                         "and the README's summary are made from)")
     os.makedirs(out_dir, exist_ok=True)
     md = os.path.join(out_dir, f"{name}.md")
     js = os.path.join(out_dir, f"{name}.json")

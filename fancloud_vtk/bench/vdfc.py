@@ -738,6 +738,7 @@ def run_vdfc(args, argv: list[str]) -> dict:
     if fr is not None:
         notes.insert(1, f"e_max {args.e_max:g} m: chosen so that the 1000 x 1000 terrain's "
                         "front holds a few per cent of the points (about 3% on average)")
+    res["rows"] = rows
     text = markdown("fancloud bench vdfc: view-dependent fan clouds (paper section 8)", res,
                     rows, notes)
     if pr is not None:
