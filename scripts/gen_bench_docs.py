@@ -96,7 +96,8 @@ SUMMARY = (
     ("vdfc", "build: ratio forest (blocks) / build_fans", "", ""),
     ("vdfc", "frames: front update, mean", "", ""),
     ("vdfc", "frames: front update, max", "", ""),
-    ("vdfc", "peers: ratio ours / best peer, SSE max", "", ""),
+    ("vdfc", "peers: ratio ours / best peer, SSE max over every layer drawn", "", ""),
+    ("vdfc", "peers: points under no triangle, ours (front)", "", ""),
     ("compile", "numba compile time (first run minus later run)", "", ""),
 )
 

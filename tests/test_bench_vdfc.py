@@ -53,16 +53,24 @@ def test_bench_vdfc_smoke(tmp_path, capsys):
         assert float(by_name[name]["measured"].replace(",", "")) > 0
     for name in ("build: ratio forest (blocks) / build_fans", "frames: front update, mean",
                  "frames: front update, max", "frames: triangles per active point, mean",
-                 "peers: ratio ours / best peer, SSE max"):
+                 "peers: ratio ours / best peer, SSE max over every layer drawn",
+                 "peers: points under no triangle, ours (front)"):
         assert by_name[name]["verdict"] in ("yes", "NO"), by_name[name]
     tpp = float(by_name["frames: triangles per active point, mean"]["measured"])
     assert 1 < tpp < 3
     mean = float(by_name["frames: front update, mean"]["measured"])
     assert mean <= float(by_name["frames: front update, max"]["measured"])
-    ours = float(by_name["peers: screen-space error max, ours (front)"]["measured"])
+    ours = float(by_name["peers: screen-space error max, nearest layer, ours (front)"]["measured"])
     assert math.isfinite(ours) and ours >= 0
-    p99 = float(by_name["peers: screen-space error 99th percentile, ours (front)"]["measured"])
+    p99 = float(by_name["peers: screen-space error 99th percentile, nearest layer, ours (front)"]
+                ["measured"])
     assert 0 <= p99 <= ours
+    # every layer drawn: never below the nearest layer
+    worst = float(by_name["peers: screen-space error max over every layer drawn, ours (front)"]
+                  ["measured"])
+    assert worst >= ours
+    assert "no triangle" in by_name["peers: ratio ours / best peer, SSE max over every layer "
+                                    "drawn"]["parameters"]
 
     assert tuple(pheader) == PEER_COLUMNS
     assert [row["surface"] for row in peers] == list(SURFACES)
