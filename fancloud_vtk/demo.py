@@ -86,7 +86,7 @@ HEAD = ((0.1, 0.33, 0.36), 0.14)
 
 def reduction_panel(fc, out_dir: str, quiet: bool) -> dict:
     """Figures 9 and 11 on the bunny: reductions side by side, selective refinement."""
-    from fancloud_vtk.cli import _print_rows, _Progress
+    from fancloud_vtk._console import _print_rows, _Progress
     from fancloud_vtk.core.reduction import hierarchy, laplacian_smooth, reduce
 
     rows, out = [], {}
@@ -132,8 +132,8 @@ def refinement_panel(fc, mesh, out_dir: str, quiet: bool) -> dict:
     marked."""
     import numpy as np
 
+    from fancloud_vtk._console import _print_rows, _Progress
     from fancloud_vtk.bench.metrics import MeshDistance
-    from fancloud_vtk.cli import _print_rows, _Progress
     from fancloud_vtk.core.reduction import reduce
     from fancloud_vtk.core.refinement import refine
 
@@ -172,8 +172,8 @@ def terrain_panel(out_dir: str, quiet: bool) -> dict:
     import pyvista as pv
     from vtkmodules.vtkCommonCore import vtkLogger
 
+    from fancloud_vtk._console import _print_rows, _Progress
     from fancloud_vtk.algorithms.convert import to_vtk
-    from fancloud_vtk.cli import _print_rows, _Progress
     from fancloud_vtk.core.vdfc import ViewDependentFanCloud, terrain_blocks, terrain_fan_cloud
     from fancloud_vtk.data import jacksboro_terrain
 
@@ -238,8 +238,8 @@ def terrain_panel(out_dir: str, quiet: bool) -> dict:
 
 def run_demo(out_dir: str = "fancloud_demo", quiet: bool = False) -> dict:
     """Run the demo; return the summary (also printed)."""
+    from fancloud_vtk._console import _print_mesh_summary, _print_summary, _Progress
     from fancloud_vtk.algorithms.convert import mesh_to_vtk, save, write_mesh
-    from fancloud_vtk.cli import _print_mesh_summary, _print_summary, _Progress
     from fancloud_vtk.core.fans import build_fans
     from fancloud_vtk.core.mesh import DoubtfulMeshWarning, fan_cloud_to_mesh
     from fancloud_vtk.data import bunny_path
