@@ -87,6 +87,8 @@ SUMMARY = (
      "keep 0.176"),
     ("reduce", "speed: time quadric edge collapse / ours reduce", "1M random points",
      "keep 0.176"),
+    ("reduce", "speed: time ours end to end / fast-simplification", "Stanford bunny",
+     "keep 0.176"),
     ("reduce", "quality: mean Hausdorff ours (1,1,50,0) / quadric edge collapse",
      "Stanford bunny", "keep 0.176"),
     ("reduce", "colour: error ours (1,1,50,1) / best peer", "airplane", "keep 0.42"),

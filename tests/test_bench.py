@@ -358,6 +358,10 @@ def test_bench_reduce_smoke(tmp_path, capsys, fake_peers):
     speed = by_name["speed: time ours reduce / fast-simplification"]
     assert _is_number(speed["measured"]) and float(speed["measured"]) > 0, speed
     assert speed["target"] == speed["verdict"] == ""  # judged at 1M and keep 0.176 only
+    # end to end beside the reduce call alone: never shorter
+    total = by_name["speed: time ours end to end / fast-simplification"]
+    assert float(total["measured"]) >= float(speed["measured"]), (total, speed)
+    assert "+ reduce + fan_cloud_to_mesh" in total["parameters"]
     quality = by_name["quality: mean Hausdorff ours (1,1,50,0) / quadric edge collapse"]
     assert quality["verdict"].startswith("not measured: not run"), quality
 
