@@ -126,6 +126,7 @@ class FanCloudAccessor:
         color_array: str = "",
         exact: bool = False,
         max_spacing: float = 4.0,
+        removal: Literal["auto", "retriangulate", "reform"] = "auto",
         mesh: bool = False,
         progress_bar: bool = False,
     ) -> pv.PolyData:
@@ -173,6 +174,7 @@ class FanCloudAccessor:
         color_array: str = "",
         exact: bool = False,
         max_spacing: float = 4.0,
+        removal: Literal["auto", "retriangulate", "reform"] = "auto",
         smooth_iterations: int = 0,
         region: Literal["sphere", "box"] = "sphere",
         region_center: tuple[float, float, float] = (0.0, 0.0, 0.0),

@@ -269,6 +269,14 @@ REDUCE_PARAMS: tuple[Param, ...] = (
           "than this many uniform spacings at the target count (and than its longest edge "
           "before), so no region is left unsampled whatever the weights; 0: no bound",
           range=(0.0, 1e6)),
+    Param("removal", "choice", "auto",
+          "how a removal mends the fans around the removed point: 'retriangulate' (a "
+          "departure from the paper: its hole is triangulated once and the neighbours' rings "
+          "spliced from that, so a mesh's one-rings stay a 2-manifold of the same topology; "
+          "removals that cannot keep that are refused), 'reform' (each fan re-formed on its "
+          "own, the paper) or 'auto' (retriangulate a triangle mesh input, re-form fans "
+          "built from points)",
+          choices=("auto", "retriangulate", "reform")),
     Param("mesh", "bool", False,
           "output the triangle mesh of the reduced fan cloud (fan_cloud_to_mesh) instead of "
           "the fan cloud"),

@@ -26,9 +26,13 @@ from ._entropy_kernels import point_cc, point_terms
 from ._geometry_kernels import tangent
 from ._heap_kernels import heap_update, sift_down
 from ._ring_kernels import NOT_STEEP, closed_ring, inversions, open_ring
+from ._splice_kernels import hole_triangles, splice_ring
 
 METHOD_ENTROPY = 0
 METHOD_ERROR = 1
+#: how removals mend the fans: re-formed (the paper), spliced from the hole's
+#: triangulation refusing sharper folds, spliced without that rule
+SPLICE_OFF, SPLICE_FOLDS, SPLICE_ANY = 0, 1, 2
 INF = np.inf
 
 # -- the state of a reduction, as a few named bundles of arrays -----------------------
@@ -44,6 +48,9 @@ FanTable = namedtuple("FanTable", ["R", "rlen", "ropen", "active"])
 InLists = namedtuple("InLists", ["IN", "nin", "over"])
 #: per point the entropy terms and the key the reduction removes by
 Terms = namedtuple("Terms", ["dist", "curv", "cc", "col", "key"])
+#: the points in the reduction's grid cells, for removals by retriangulation: which are
+#: still in the cloud, the grid's origin, inverse cell side, cell starts and hash table
+Near = namedtuple("Near", ["active", "lo", "inv_h", "start", "table"])
 #: the log of the removals (the hierarchy): removal order, local-frame detail, the removed
 #: rings, and the old rings of the fans each removal changed; the last five grow
 RemovalLog = namedtuple("RemovalLog", ["order", "detail", "rem_off", "rem_open", "log_off",
@@ -285,6 +292,14 @@ def fan_scratch(width):
 
 
 @njit(cache=True)
+def hole_scratch(width):
+    """Scratch arrays of :func:`~._splice_kernels.hole_triangles` for rings of at most
+    ``width`` points: (xs, ys, alive, tris)."""
+    return (np.empty(width), np.empty(width), np.empty(width, np.bool_),
+            np.empty((width, 3), np.int64))
+
+
+@njit(cache=True)
 def delaunay_fan(points, normals, is_open, x, cand, m, xs, ys, order, hull, width, steep, out):
     """x's local Delaunay ring in its tangent plane among ``cand[:m]``, written to ``out``.
 
@@ -435,15 +450,19 @@ def init_state(points, normals, colors, R, rlen, w, dbar, method, head, nxt):
 
 
 @njit(cache=True)
-def reduce_steps(cloud, w, dbar, max_edge, method, fans, inl, terms, heap, hpos, counters,
-                 max_steps, target, log, stamp, carried):
+def reduce_steps(cloud, w, dbar, max_edge, splice, near, method, fans, inl, terms, heap, hpos,
+                 counters, max_steps, target, log, stamp, carried):
     """Remove up to ``max_steps`` points (never below ``target`` active ones).
 
     ``counters``: [heap size, removals, log entries, ring entries of the log,
     removed-ring entries, stamp tag]. Returns the (possibly grown) growing log
     arrays (``rem_ring, ent_x, ent_open, ent_off, ent_ring``); the removal
     stops early when every remaining point is blocked (its key is inf: no fan
-    could be re-formed without it).
+    could be re-formed without it). ``splice`` (not ``SPLICE_OFF``): the fans are the
+    one-rings of a 2-manifold mesh, and a removal retriangulates the hole once and
+    splices the neighbours' rings from it (``_splice_kernels``) instead of re-forming
+    them; ``SPLICE_FOLDS``: refusing removals that sharpen a fold. ``near``: see
+    ``_splice_kernels.hole_triangles``.
     """
     points, normals, colors = cloud
     R, rlen, ropen, active = fans
@@ -459,6 +478,7 @@ def reduce_steps(cloud, w, dbar, max_edge, method, fans, inl, terms, heap, hpos,
     new_len = np.empty(aff.shape[0], np.int64)
     new_open = np.empty(aff.shape[0], np.bool_)
     upd = np.empty(aff.shape[0] + 1, np.int64)
+    hx, hy, halive, htris = hole_scratch(width)
     size = counters[0]
     steps = 0
     while steps < max_steps and size > target:
@@ -482,15 +502,30 @@ def reduce_steps(cloud, w, dbar, max_edge, method, fans, inl, terms, heap, hpos,
                 n_aff += 1
         # re-form them all (or none)
         ok = True
-        for i in range(n_aff):
-            x = aff[i]
-            h, op = _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, ordr, hull,
-                            new_rings[i], max_edge)
-            if h < 0:
-                ok = False
-                break
-            new_len[i] = h
-            new_open[i] = op
+        if splice:
+            nt = -1
+            if not over[p] and n_aff == rlen[p]:  # the fans holding p are its ring's
+                nt = hole_triangles(points, normals, R, rlen, ropen, p, max_edge * max_edge,
+                                    splice == SPLICE_FOLDS, near, hx, hy, halive, htris)
+            ok = nt > 0
+            for i in range(n_aff if ok else 0):
+                x = aff[i]
+                h = splice_ring(R, rlen, ropen, x, p, htris, nt, new_rings[i])
+                if h < 0:
+                    ok = False
+                    break
+                new_len[i] = h
+                new_open[i] = ropen[x]
+        else:
+            for i in range(n_aff):
+                x = aff[i]
+                h, op = _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, ordr,
+                                hull, new_rings[i], max_edge)
+                if h < 0:
+                    ok = False
+                    break
+                new_len[i] = h
+                new_open[i] = op
         if not ok:
             heap_update(heap, hpos, key, p, INF, size)
             continue
@@ -824,7 +859,7 @@ def accept_batch(cands, R, rlen, IN, nin, over, mark, tag):
 
 @njit(cache=True, parallel=True)
 def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-                 with_frames, cc, w, key_now, max_edge):
+                 with_frames, cc, w, key_now, max_edge, splice, near, defer):
     """Phase A: the new fans of every point whose fan contains an accepted point.
 
     Returns (buf, buf_len, buf_open, buf_terms, ok, frames): buf[buf_off[i] +
@@ -833,9 +868,12 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
     changes at most once a round), and with ``key_now`` its entropy key as
     ``update_keys`` would find it (no M_cc weight: then the key needs no
     other fan's new terms; method 'error' keys come in ``_apply``); ok[i]
-    False if some fan cannot be re-formed; frames[i] the detail of acc[i] (offset and normal in its
-    ring's frame; only ``with_frames``). The work is split in ``n_chunks``
-    parts.
+    0 if some fan cannot be re-formed (2: a retriangulation deferred to a later
+    round, next to an earlier removal of this round); frames[i] the detail of
+    acc[i] (offset and normal in its ring's frame; only ``with_frames``). The
+    work is split in ``n_chunks`` parts. ``splice``, ``near``: see
+    :func:`reduce_steps`; ``defer``: removals to leave for a later round
+    (``_splice_kernels.defer_overlaps``).
     """
     n_acc = acc.shape[0]
     width = R.shape[1]
@@ -844,18 +882,35 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
     buf_len = np.empty(total, np.int64)
     buf_open = np.empty(total, np.bool_)
     buf_terms = np.empty((total, 4))
-    ok = np.ones(n_acc, np.bool_)
+    ok = np.ones(n_acc, np.int8)  # 1: ok, 0: refused, 2: deferred to a later round
     frames = np.empty((n_acc if with_frames else 0, 6))
     for ch in prange(n_chunks):
         cand, xs, ys, ordr, hull = fan_scratch(width)
+        hx, hy, halive, htris = hole_scratch(width)
         for i in range((n_acc * ch) // n_chunks, (n_acc * (ch + 1)) // n_chunks):
             p = acc[i]
-            for j in range(nin[p]):
+            nt = 0
+            if splice:
+                nt = -1
+                if defer[i]:
+                    ok[i] = 2
+                else:
+                    if nin[p] == rlen[p]:  # the fans holding p are its ring's
+                        nt = hole_triangles(points, normals, R, rlen, ropen, p,
+                                            max_edge * max_edge, splice == SPLICE_FOLDS, near,
+                                            hx, hy, halive, htris)
+                    if nt < 0:
+                        ok[i] = 0
+            for j in range(nin[p] if ok[i] == 1 else 0):
                 x = IN[p, j]
-                h, op = _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, ordr,
-                                hull, buf[buf_off[i] + j], max_edge)
+                if splice:
+                    h = splice_ring(R, rlen, ropen, x, p, htris, nt, buf[buf_off[i] + j])
+                    op = ropen[x]
+                else:
+                    h, op = _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, ordr,
+                                    hull, buf[buf_off[i] + j], max_edge)
                 if h < 0:
-                    ok[i] = False
+                    ok[i] = 0
                     break
                 b = buf_off[i] + j
                 buf_len[b] = h
@@ -891,8 +946,9 @@ def _plan_commit(rlen, IN, nin, key, acc, ok, limit, counters):
     idx = np.empty(n_acc, np.int64)
     m = 0
     for i in range(n_acc):
-        if not ok[i]:
-            key[acc[i]] = INF
+        if ok[i] != 1:
+            if ok[i] == 0:
+                key[acc[i]] = INF
             continue
         if m == limit:
             break

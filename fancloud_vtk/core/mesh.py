@@ -121,10 +121,16 @@ def fan_cloud_to_mesh(
         From :func:`fancloud_vtk.build_fans` (or read from a ``.vtp``).
     rings : {'delaunay', 'fans'}, default: 'delaunay'
         Where the triangles come from. ``'fans'``: the fan cloud's own fans,
-        as in the paper. On irregularly (randomly) sampled surfaces those
-        fans agree poorly: most of their triangles belong to one fan only
-        (measured on 20,000 random points of a sphere: 87% of the distinct
-        triangles), so the grown mesh keeps many holes. ``'delaunay'``
+        as in the paper. Fans that are the one-rings of a 2-manifold (every
+        fan triangle in the fans of its three points, no edge in more than
+        two triangles: the fan cloud of a triangle mesh, or its reduction
+        with ``removal='retriangulate'``) give that 2-manifold as it is:
+        no stage below changes it, and self-intersections are counted (with
+        a :class:`DoubtfulMeshWarning`), not removed. On irregularly
+        (randomly) sampled surfaces the fans agree poorly: most of their
+        triangles belong to one fan only (measured on 20,000 random points
+        of a sphere: 87% of the distinct triangles), so the grown mesh keeps
+        many holes. ``'delaunay'``
         (default): every fan's ring is first replaced by its local Delaunay
         ring in its tangent plane, taken from its two fan rings (no new
         neighbour search; an open fan gets an open Delaunay fan);
@@ -258,6 +264,9 @@ def fan_cloud_to_mesh(
     stats["fan_triangles"] = int(n_fan)
     stats["distinct"] = len(tri)
     timings["distinct"] = time.perf_counter() - t0
+    if rings == "fans" and _one_rings(fans, tri, count, n_fan):
+        return _manifold_of_rings(source, spatial, fancloud, tri, stats, timings,
+                                  self_intersections)
 
     t0 = time.perf_counter()
     quality = MK.min_angles(fancloud.points, tri) / 60.0
@@ -358,6 +367,50 @@ def fan_cloud_to_mesh(
         {k: v.copy() for k, v in source.point_data.items()},
         stats,
         np.sort(spatial[outliers]),
+    )
+
+
+def _one_rings(fans: FanCloud, tri, count, n_fan) -> bool:
+    """The fans are the one-rings of a 2-manifold: every fan triangle is in the fans of
+    all three of its points (none in fewer), and no edge has more than two triangles."""
+    if len(tri) == 0 or n_fan != 3 * len(tri) or not (count == 3).all():
+        return False
+    e = np.sort(tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    n = fans.n_points
+    _, cnt = np.unique(e[:, 0] * n + e[:, 1], return_counts=True)
+    return bool(cnt.max() <= 2)
+
+
+def _manifold_of_rings(source, spatial, fancloud, tri, stats, timings, self_intersections):
+    """The mesh of fans that are one-rings (:func:`_one_rings`): their triangles, as
+    they are (the fan cloud of a triangle mesh, or a reduction of it by retriangulation).
+    Nothing is removed or grown: self-intersections are counted (and warned of), not
+    removed, which would open the surface."""
+    import warnings
+
+    from .mesh_stats import mesh_statistics
+
+    t0 = time.perf_counter()
+    for key in ("after_superfluous", "uncontested", "grown", "final"):
+        stats[key] = len(tri)
+    for key in ("pinch_cut", "holes_closed", "points_inserted", "self_intersections_removed",
+                "outliers"):
+        stats[key] = 0
+    stats.update(mesh_statistics(fancloud.points, tri, self_intersections=self_intersections))
+    timings["checks"] = time.perf_counter() - t0
+    stats["timings"] = timings
+    if stats.get("self_intersections", 0) > 0:
+        warnings.warn(
+            f"fan_cloud_to_mesh: the fans are the one-rings of a 2-manifold, taken as they "
+            f"are; {stats['self_intersections']} pairs of its triangles intersect",
+            DoubtfulMeshWarning, stacklevel=3)
+    return TriangleMesh(
+        source.points.copy(),
+        np.ascontiguousarray(spatial[tri], dtype=np.int64),
+        source.normals.copy(),
+        {k: v.copy() for k, v in source.point_data.items()},
+        stats,
+        np.empty(0, np.int64),
     )
 
 

@@ -22,6 +22,7 @@ import numpy as np
 from . import _csr_kernels as CsrK
 from . import _heap_kernels as HeapK
 from . import _reduction_kernels as RK
+from . import _splice_kernels as SK
 from ._entropy_kernels import mean_distance
 from .entropy import DEFAULT_WEIGHTS, as_colors, as_fan_cloud, check_weights
 from .fans import Cancelled, Grid
@@ -78,7 +79,8 @@ def _report(progress, fraction, message):
 
 
 def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entropy", colors=None,
-              exact=False, max_spacing=DEFAULT_MAX_SPACING, progress=None) -> Hierarchy:
+              exact=False, max_spacing=DEFAULT_MAX_SPACING, removal="auto",
+              progress=None) -> Hierarchy:
     """The removal hierarchy of a fan cloud or triangle mesh, down to ``n_points``.
 
     Parameters
@@ -116,6 +118,19 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
         longest edge before. The entropy still decides the order, so flat
         parts thin out and features stay dense, within the bound.
         ``0``: no bound (the paper's reduction).
+    removal : {'auto', 'retriangulate', 'reform'}, default: 'auto'
+        How a removal mends the fans around the removed point.
+        ``'reform'`` (the paper): every fan that held it is re-formed from
+        the points that remain, each on its own. ``'retriangulate'`` (a
+        departure from the paper, for fans that are the one-rings of a
+        2-manifold mesh): the point's hole is triangulated once, in its
+        tangent plane, and each neighbour's ring is spliced from that
+        triangulation, so the rings stay the one-rings of a 2-manifold of
+        the same topology; a removal that cannot keep that (a new edge that
+        exists already, a folding triangle, a boundary turning inward) is
+        refused. ``'auto'``: retriangulate the fan cloud of a triangle mesh
+        (``info['source'] == 'triangle mesh'``), re-form fans built from
+        points.
     progress : callable, optional
         ``progress(fraction, message)``; returning True cancels
         (:class:`~fancloud_vtk.Cancelled`).
@@ -147,11 +162,25 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
                          f"at least {MIN_POINTS}")
     target = MIN_POINTS if n_points is None else target_count(fc.n_points, n_points, None)
     return _run(fc, target, n_points is not None, weights, method, colors, exact, progress,
-                logs=True, max_spacing=max_spacing)
+                logs=True, max_spacing=max_spacing, removal=removal)
+
+
+#: how a removal mends the fans around it (see :func:`hierarchy`)
+REMOVALS = ("auto", "retriangulate", "reform")
+
+
+def splices(fc: FanCloud, removal) -> bool:
+    """Whether removals from ``fc`` retriangulate (``removal``: one of :data:`REMOVALS`)."""
+    if removal not in REMOVALS:
+        raise ValueError(f"removal must be one of {', '.join(map(repr, REMOVALS))}, "
+                         f"got {removal!r}")
+    if removal == "auto":
+        return fc.info.get("source") == "triangle mesh"
+    return removal == "retriangulate"
 
 
 def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact, progress,
-         logs: bool, max_spacing=DEFAULT_MAX_SPACING):
+         logs: bool, max_spacing=DEFAULT_MAX_SPACING, removal="auto"):
     """The reduction of ``fc`` to ``target`` points: its :class:`Hierarchy` (``logs``), or
     without logs (nothing recorded but the result) the reduced fan cloud itself, which is
     the same as the hierarchy's coarsest level."""
@@ -159,6 +188,7 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     if method not in METHODS:
         raise ValueError(f"method must be 'entropy' or 'error', got {method!r}")
     w = check_weights(weights)
+    splice = RK.SPLICE_FOLDS if splices(fc, removal) else RK.SPLICE_OFF
     max_edge = _max_edge(max_spacing, n, target)
     rgb = as_colors(colors, fc.point_data, n)
     if method == "entropy" and w[3] > 0 and rgb is None:
@@ -183,6 +213,8 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     R, rlen = CsrK.table_from_csr(fc.offsets, fc.ring, perm, rank, width)
     ropen = np.ascontiguousarray(fc.open[perm])
     active = np.ones(n, bool)
+    near = RK.Near(active, np.asarray(grid.lo, np.float64), 1.0 / grid.h, grid.start,
+                   grid.table)
     IN, nin, over = RK.build_in_lists(R, rlen, IN_WIDTH, numba.get_num_threads())
     # method 'error': the removed points each remaining point carries (_reduction_kernels)
     m_carry = n if method == "error" else 0
@@ -217,16 +249,34 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
         chunk = max(1000, n_remove // 50)
         while counters[1] < n_remove:
             before = counters[1]
-            log.grown(RK.reduce_steps(cloud, wa, dbar, max_edge, METHODS[method], fans, inl, terms,
-                                      heap,
+            log.grown(RK.reduce_steps(cloud, wa, dbar, max_edge, splice, near,
+                                      METHODS[method], fans, inl, terms, heap,
                                       hpos, counters, chunk, target, log.bundle(), stamp,
                                       carried))
             _report(progress, counters[1] / max(n_remove, 1), "reduction")
             if counters[1] == before:
                 break  # every remaining point is blocked
     else:
-        _rounds(cloud, wa, dbar, max_edge, METHODS[method], fans, inl, terms, counters,
-                n_remove, log, stamp, progress, carried, logs)
+        _rounds(cloud, wa, dbar, max_edge, splice, near, METHODS[method], fans, inl, terms,
+                counters, n_remove, log, stamp, progress, carried, logs)
+    if splice == RK.SPLICE_FOLDS and counters[1] < n_remove:
+        # every point left would sharpen a fold: go on without that rule (the manifold and
+        # its topology are still kept)
+        blocked = np.flatnonzero(active & np.isinf(key))
+        RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, wa, METHODS[method], dbar,
+                       blocked, head, nxt)
+        if exact:
+            heap, hpos = HeapK.heap_of(key, active)
+            while counters[1] < n_remove:
+                before = counters[1]
+                log.grown(RK.reduce_steps(cloud, wa, dbar, max_edge, RK.SPLICE_ANY, near,
+                                          METHODS[method], fans, inl, terms, heap, hpos,
+                                          counters, chunk, target, log.bundle(), stamp, carried))
+                if counters[1] == before:
+                    break
+        else:
+            _rounds(cloud, wa, dbar, max_edge, RK.SPLICE_ANY, near, METHODS[method], fans,
+                    inl, terms, counters, n_remove, log, stamp, progress, carried, logs)
     rem_ring, ent_x, ent_open, ent_off, ent_ring = (log.rem_ring, log.ent_x, log.ent_open,
                                                     log.ent_off, log.ent_ring)
     r = int(counters[1])
@@ -311,8 +361,8 @@ class _Logs:
         self.ent_ring = self._fit(self.ent_ring, counters[3] + n_ent_ring)
 
 
-def _rounds(cloud, w, dbar, max_edge, method, fans, inl, terms, counters, n_remove, logs, stamp,
-            progress, carried, write_logs=True):
+def _rounds(cloud, w, dbar, max_edge, splice, near, method, fans, inl, terms, counters, n_remove,
+            logs, stamp, progress, carried, write_logs=True):
     """The reduction in rounds (see ``_reduction_kernels``): each round accepts, lowest key
     first, the candidates whose neighbourhoods do not overlap, and removes them together.
     ``write_logs`` False: the rounds record nothing (the rare one-at-a-time fallback still
@@ -339,7 +389,9 @@ def _rounds(cloud, w, dbar, max_edge, method, fans, inl, terms, counters, n_remo
         if len(acc) == 0:
             # only points with overflowing in-lists left: one at a time
             heap, hpos = HeapK.heap_of(key, active)
-            logs.grown(RK.reduce_steps(cloud, w, dbar, max_edge, method, fans, inl, terms, heap,
+            logs.grown(RK.reduce_steps(cloud, w, dbar, max_edge, splice, near, method, fans,
+                                       inl,
+                                       terms, heap,
                                        hpos,
                                        counters, 1, n - n_remove, logs.bundle(), stamp, carried))
             continue
@@ -349,9 +401,12 @@ def _rounds(cloud, w, dbar, max_edge, method, fans, inl, terms, counters, n_remo
         if write_logs:
             logs.reserve(counters, len(acc) * width, int(buf_off[-1]),
                          int(buf_off[-1]) * width)
+        defer = np.zeros(len(acc), bool)
+        if splice:  # neighbours in space go one after the other (in later rounds)
+            SK.defer_overlaps(pts, R, rlen, acc, near.lo, near.inv_h, defer)
         buf, buf_len, buf_open, buf_terms, ok, frames = RK.reform_batch(
             pts, nrm, col, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-            write_logs, cc, w, key_now, max_edge)
+            write_logs, cc, w, key_now, max_edge, splice, near, defer)
         batch = RK.Batch(acc, buf_off, buf, buf_len, buf_open, buf_terms, ok, frames)
         changed = RK.commit_batch(cloud, fans, inl, terms, batch, key_now,
                                   n_remove - counters[1], counters, logs.bundle(), stamp,
@@ -363,8 +418,8 @@ def _rounds(cloud, w, dbar, max_edge, method, fans, inl, terms, counters, n_remo
 
 
 def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, method="entropy",
-           colors=None, exact=False, max_spacing=DEFAULT_MAX_SPACING, return_hierarchy=False,
-           progress=None):
+           colors=None, exact=False, max_spacing=DEFAULT_MAX_SPACING, removal="auto",
+           return_hierarchy=False, progress=None):
     """Reduce a fan cloud (or triangle mesh) to ``n_points`` points by entropy (section 5).
 
     Repeatedly removes the point of lowest entropy (or, with
@@ -396,6 +451,12 @@ def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, metho
         The spacing bound: no removal leaves a gap wider than this many
         uniform spacings at the target count (see :func:`hierarchy`; 0: no
         bound).
+    removal : {'auto', 'retriangulate', 'reform'}, default: 'auto'
+        How a removal mends the fans around it: re-formed one by one (the
+        paper), or the hole retriangulated once and the rings spliced from
+        it, which keeps a mesh's one-rings a 2-manifold of the same topology
+        (see :func:`hierarchy`). ``'auto'``: retriangulate the fan cloud of a
+        triangle mesh, re-form fans built from points.
     return_hierarchy : bool, default: False
         Also return the :class:`Hierarchy` of the removals.
     progress : callable, optional
@@ -433,9 +494,9 @@ def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, metho
     if not return_hierarchy:
         # nothing recorded but the result (the hierarchy's coarsest level)
         return _run(fc, target, True, weights, method, colors, exact, progress, logs=False,
-                    max_spacing=max_spacing)
+                    max_spacing=max_spacing, removal=removal)
     h = _run(fc, target, True, weights, method, colors, exact, progress, logs=True,
-             max_spacing=max_spacing)
+             max_spacing=max_spacing, removal=removal)
     return h.level(target), h
 
 
