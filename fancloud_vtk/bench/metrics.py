@@ -185,6 +185,7 @@ class Reference:
         self.colors = (None if data["colors"] is None  # RGB in [0, 1]
                        else np.asarray(data["colors"], dtype=np.float64)[:, :3] / 255.0)
         self._tree = None
+        self.topology = topology(pts, tri)
 
     def tree(self):
         from scipy.spatial import cKDTree
@@ -216,6 +217,32 @@ def colour_at(query, vertices, triangles, colors) -> np.ndarray:
     w /= np.maximum(w.sum(1, keepdims=True), 1e-300)
     col = np.asarray(colors, np.float64)[:, :3]
     return w[:, :1] * col[tri[:, 0]] + w[:, 1:2] * col[tri[:, 1]] + w[:, 2:] * col[tri[:, 2]]
+
+
+#: the topology counts of a mesh that ``fancloud bench reduce`` reports (mesh_statistics)
+TOPOLOGY_KEYS = ("boundary_edges", "non_manifold_edges", "non_manifold_vertices",
+                 "euler_characteristic", "components", "self_intersections")
+
+
+def topology(points, triangles) -> dict:
+    """Boundary edges, non-manifold edges and vertices, Euler characteristic, components
+    and self-intersecting triangle pairs of a mesh."""
+    from fancloud_vtk.core.mesh_stats import mesh_statistics
+
+    s = mesh_statistics(np.asarray(points, np.float64), np.asarray(triangles, np.int64),
+                        self_intersections=True)
+    return {k: int(s[k]) for k in TOPOLOGY_KEYS}
+
+
+def topology_defects(mine: dict, ref: dict) -> int:
+    """How far a result is from a 2-manifold with the input's topology: its non-manifold
+    edges and vertices, its boundary edges if the input has none, and the changes of the
+    Euler characteristic and of the number of components."""
+    bad = mine["non_manifold_edges"] + mine["non_manifold_vertices"]
+    if ref["boundary_edges"] == 0:
+        bad += mine["boundary_edges"]
+    bad += abs(mine["euler_characteristic"] - ref["euler_characteristic"])
+    return bad + abs(mine["components"] - ref["components"])
 
 
 def measure_result(r: dict, ref: Reference) -> None:
@@ -256,6 +283,8 @@ def measure_result(r: dict, ref: Reference) -> None:
                  hausdorff_mean=0.5 * (fwd_mean + back["mean"]) / diag,
                  feature_mean=float(feat.mean()) / diag, feature_max=float(feat.max()) / diag,
                  how="both ways, mean of the two directions' means")
+        m["topology"] = topology(vertices, triangles)
+        m["topology_defects"] = topology_defects(m["topology"], ref.topology)
     if ref.colors is not None and len(vertices) and (m["points_only"] or len(triangles)):
         if colors is not None and len(colors) == len(vertices):
             # uint8 from ours, 0..255 floats from pymeshlab (see fancloud_vtk.bench.peers)

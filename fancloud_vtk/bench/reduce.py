@@ -1,6 +1,6 @@
 """``fancloud bench reduce``: reduction by entropy against mesh decimators, at equal vertex counts.
 
-``fancloud bench reduce [--data bunny bone airplane 1M ...] [--keep 0.42 0.176]
+``fancloud bench reduce [--data bunny cow bone airplane 1M ...] [--keep 0.42 0.176]
 [--methods ...] [--out DIR] [--repeat R] [--timeout S] [--quick]``
 
 Every method reduces the same input to the same number of vertices,
@@ -84,8 +84,9 @@ TABLE_COLUMNS = ("method", "keep", "target", "kept vertices", "time (s)", "+ fan
 
 #: pymeshlab's sample meshes by ``--data`` name (bone.ply's colour is one uniform white;
 #: colored_airplane.ply has 1,115 distinct vertex colours: the colour figure is measured there)
-DATA_KINDS = {"bunny": "bunny.obj", "bone": "bone.ply", "airplane": "colored_airplane.ply"}
-DEFAULT_DATA = ["bunny", "bone", "airplane", "1M"]
+DATA_KINDS = {"bunny": "bunny.obj", "bone": "bone.ply", "airplane": "colored_airplane.ply",
+              "cow": "cow.obj"}
+DEFAULT_DATA = ["bunny", "cow", "bone", "airplane", "1M"]
 QUICK_DATA = ["bunny", "bone", "airplane", "100k"]
 
 
@@ -131,7 +132,8 @@ def reduce_data(kind: str, n: int | None, seed: int) -> dict:
         if uniform:  # nothing to preserve: no colour error, no colour weight
             colors = None
         dropped = len(f.points) - len(used)
-        title = {"bunny": "Stanford bunny", "bone": "bone", "airplane": "airplane"}[kind]
+        title = {"bunny": "Stanford bunny", "bone": "bone", "airplane": "airplane",
+                 "cow": "cow"}[kind]
         return {"kind": kind, "n": len(points), "points": points, "triangles": triangles,
                 "colors": colors, "from_points": False,
                 "label": f"{title} (pymeshlab {name}), {len(points):,} points, "
@@ -240,6 +242,45 @@ def figure_rows(res: dict) -> list[dict]:
         if ds["has_colour"]:
             for keep in keeps:
                 rows += _colour_rows(ds, data, keep, _judged(keep, QUALITY_KEEPS))
+        for keep in keeps:
+            rows += _topology_rows(ds, data, keep)
+    return rows
+
+
+#: ours, whose results must be 2-manifolds with the input's topology (issue 24)
+TOPOLOGY_JUDGED = ("ours-shape", "ours-uniform", "ours-error")
+
+
+def _topology_rows(ds, data, keep) -> list[dict]:
+    """Per method that made a mesh: its topology defects (judged for ours: 0) and its
+    self-intersecting triangle pairs (judged for ours: no more than the input's)."""
+    ref = ds.get("topology")
+    if ref is None:
+        return []
+    rows = []
+    for r in ds["results"]:
+        if abs(r["keep"] - keep) > 1e-9 or r["status"] != "ok":
+            continue
+        m = r.get("measures", {})
+        if "topology" not in m:
+            continue
+        t = m["topology"]
+        judged = r["method"] in TOPOLOGY_JUDGED and not ds.get("from_points")
+        params = (f"keep {keep:g}; boundary edges {t['boundary_edges']:,} (input "
+                  f"{ref['boundary_edges']:,}), non-manifold edges {t['non_manifold_edges']}, "
+                  f"vertices {t['non_manifold_vertices']}, Euler characteristic "
+                  f"{t['euler_characteristic']} (input {ref['euler_characteristic']}), "
+                  f"components {t['components']} (input {ref['components']})")
+        rows.append(_row(f"topology: defects of {r['label']} (0: a 2-manifold with the "
+                         "input's topology)", data, params, str(m["topology_defects"]),
+                         "count", "0" if judged else "",
+                         _ok(m["topology_defects"] == 0) if judged else ""))
+        rows.append(_row(f"topology: self-intersecting triangle pairs of {r['label']}", data,
+                         f"keep {keep:g}; the input has {ref['self_intersections']:,}",
+                         str(t["self_intersections"]), "pairs",
+                         f"<= {ref['self_intersections']}" if judged else "",
+                         _ok(t["self_intersections"] <= ref["self_intersections"])
+                         if judged else ""))
     return rows
 
 
@@ -553,7 +594,8 @@ def run_reduce(args, argv: list[str]) -> dict:
                   "diag": ref.diag, "has_colour": data["colors"] is not None,
                   "n_triangles": len(data["triangles"]), "fractions": fractions,
                   "curvature_source": ref.curvature_source,
-                  "reference_time": time.perf_counter() - t0, "results": []}
+                  "reference_time": time.perf_counter() - t0, "results": [],
+                  "topology": ref.topology, "from_points": data["from_points"]}
             data_path = os.path.join(work, f"{kind}-{n}.npz")
             save_reduce_data(data_path, data["points"], data["triangles"], data["colors"],
                              data["from_points"])
@@ -624,8 +666,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
                     "feature and colour error. Writes reduce.md, reduce.json, "
                     "reduce_curves.png and reduce_bunny.png.")
     p.add_argument("--data", nargs="+", default=None, metavar="DATA",
-                   help="bunny (pymeshlab bunny.obj), bone (bone.ply; its colour is uniform), "
-                        "airplane (colored_airplane.ply, coloured) or a number of random points "
+                   help="bunny (pymeshlab bunny.obj), cow (cow.obj), bone (bone.ply; its "
+                        "colour is uniform), airplane (colored_airplane.ply, coloured) or a "
+                        "number of random points "
                         f"on the bumpy sphere (100k, 1M) (default: {' '.join(DEFAULT_DATA)}; "
                         f"--quick: {' '.join(QUICK_DATA)})")
     p.add_argument("--keep", nargs="+", type=float, default=list(DEFAULT_KEEPS),
