@@ -29,6 +29,9 @@ from .mesh_stats import AREA_TOL, INTERSECTION_TOL, _pair_intersects, _triangle_
 MIN_NORMAL_DOT = 0.2
 #: an ear whose smallest angle's sine is below this is degenerate
 MIN_SINE = 1e-6
+#: the crossing test looks at the points around the hole's box within this fraction of its
+#: longest spoke (see ``_crosses``)
+SPOKE_MARGIN = 0.25
 #: a boundary point is removed only where the boundary turns by at most this (degrees)
 MAX_BOUNDARY_TURN = 30.0
 COS_BOUNDARY_TURN = float(np.cos(np.deg2rad(MAX_BOUNDARY_TURN)))
@@ -301,12 +304,13 @@ def _crosses(points, normals, R, rlen, ropen, p, tris, nt, near):
             for j in range(m):
                 if R[p, j] == tris[t, c]:
                     tloc[t, c] = j
-    # the box of the hole, and around it by the longest spoke: triangles of points there
-    # may reach over the hole
+    # the box of the hole, and around it by a quarter of the longest spoke: triangles of
+    # points there may reach over the hole (without the margin two tori 0.3 edges apart
+    # crossed in 4 places at keep 0.2; a whole spoke doubles the cost and finds no more)
     spoke = 0.0
     for j in range(m):
         spoke = max(spoke, xs[j] * xs[j] + ys[j] * ys[j] + zs[j] * zs[j])
-    spoke = np.sqrt(spoke)
+    spoke = SPOKE_MARGIN * np.sqrt(spoke)
     i0 = np.empty(3, np.int64)
     i1 = np.empty(3, np.int64)
     for c in range(3):
@@ -395,28 +399,50 @@ def hole_box_cells(points, R, rlen, p, lo, inv_h):
 
 
 @njit(cache=True)
+def _slot(keys, key):
+    """The slot of ``key`` in the open-addressing table ``keys`` (-1: empty)."""
+    mask = keys.shape[0] - 1
+    h = ((key ^ (key >> 29)) * 0x5851F42D4C957F2D) & mask
+    while keys[h] != -1 and keys[h] != key:
+        h = (h + 1) & mask
+    return h
+
+
+@njit(cache=True)
 def defer_overlaps(points, R, rlen, acc, lo, inv_h, defer):
     """Of removals made together (a round), in order, ``defer`` those whose hole's box
     meets a cell of an earlier one's that goes ahead: each checks its new triangles
     against the surface as it was, so two neighbours in space (not in the rings: on two
     sheets) must not change it at once."""
-    owned = dict()
-    for i in range(acc.shape[0]):
-        p = acc[i]
-        i0, i1 = hole_box_cells(points, R, rlen, p, lo, inv_h)
+    n_acc = acc.shape[0]
+    lo_c = np.empty((n_acc, 3), np.int64)
+    hi_c = np.empty((n_acc, 3), np.int64)
+    total = 0
+    for i in range(n_acc):
+        i0, i1 = hole_box_cells(points, R, rlen, acc[i], lo, inv_h)
+        lo_c[i] = i0
+        hi_c[i] = i1
+        total += (i1[0] - i0[0] + 1) * (i1[1] - i0[1] + 1) * (i1[2] - i0[2] + 1)
+    size = 16
+    while size < 2 * total:
+        size *= 2
+    keys = np.full(size, -1, np.int64)
+    for i in range(n_acc):
         clash = False
-        for iz in range(i0[2], i1[2] + 1):
-            for iy in range(i0[1], i1[1] + 1):
-                for ix in range(i0[0], i1[0] + 1):
-                    if (ix | (iy << 21) | (iz << 42)) in owned:
+        for iz in range(lo_c[i, 2], hi_c[i, 2] + 1):
+            for iy in range(lo_c[i, 1], hi_c[i, 1] + 1):
+                for ix in range(lo_c[i, 0], hi_c[i, 0] + 1):
+                    key = ix | (iy << 21) | (iz << 42)
+                    if keys[_slot(keys, key)] == key:
                         clash = True
         defer[i] = clash
         if clash:
             continue
-        for iz in range(i0[2], i1[2] + 1):
-            for iy in range(i0[1], i1[1] + 1):
-                for ix in range(i0[0], i1[0] + 1):
-                    owned[ix | (iy << 21) | (iz << 42)] = i
+        for iz in range(lo_c[i, 2], hi_c[i, 2] + 1):
+            for iy in range(lo_c[i, 1], hi_c[i, 1] + 1):
+                for ix in range(lo_c[i, 0], hi_c[i, 0] + 1):
+                    key = ix | (iy << 21) | (iz << 42)
+                    keys[_slot(keys, key)] = key
 
 
 @njit(cache=True)
