@@ -32,9 +32,13 @@ Selected once the files exist (row names as ``fancloud_vtk/bench/*.py`` build th
   build_fans, cold compile``;
 * ``reduce`` (``reduce.py``): at 1M points and keep 0.176, ``speed: time ours reduce /
   fast-simplification`` and ``speed: time quadric edge collapse / ours reduce`` (the
-  reduce call alone, fans excluded, as the rows' parameters say); on the Stanford bunny
-  at keep 0.176, ``quality: mean Hausdorff ours (1,1,50,0) / quadric edge collapse``; on
-  the airplane at keep 0.42, ``colour: error ours (1,1,50,1) / best peer``;
+  reduce call alone, fans excluded, as the rows' parameters say);
+* ``reduce_meshes`` (``reduce.py`` on the meshes): on the Stanford bunny at keep 0.176,
+  ``speed: time ours end to end / fast-simplification`` and ``quality: mean Hausdorff``
+  of ours (1,1,50,0) and of ours error against the quadric edge collapse; on the
+  airplane at keep 0.42, ``colour: error ours (1,1,50,1) / best peer``; on the cow at
+  keep 0.1, the topology defects and the self-intersecting triangle pairs of ours
+  (1,1,50,0);
 * ``refine`` (``refine.py``): ``speed: ratio refine / build_fans(2n)``, ``cycles:
   Hausdorff max after cycle N`` and ``cycles: volume change after cycle N`` (the last
   cycle);
@@ -87,11 +91,16 @@ SUMMARY = (
      "keep 0.176"),
     ("reduce", "speed: time quadric edge collapse / ours reduce", "1M random points",
      "keep 0.176"),
-    ("reduce", "speed: time ours end to end / fast-simplification", "Stanford bunny",
+    ("reduce_meshes", "speed: time ours end to end / fast-simplification", "Stanford bunny",
      "keep 0.176"),
-    ("reduce", "quality: mean Hausdorff ours (1,1,50,0) / quadric edge collapse",
+    ("reduce_meshes", "quality: mean Hausdorff ours (1,1,50,0) / quadric edge collapse",
      "Stanford bunny", "keep 0.176"),
-    ("reduce", "colour: error ours (1,1,50,1) / best peer", "airplane", "keep 0.42"),
+    ("reduce_meshes", "quality: mean Hausdorff ours error / quadric edge collapse",
+     "Stanford bunny", "keep 0.176"),
+    ("reduce_meshes", "colour: error ours (1,1,50,1) / best peer", "airplane", "keep 0.42"),
+    ("reduce_meshes", "topology: defects of ours entropy (1,1,50,0) *", "cow", "keep 0.1;"),
+    ("reduce_meshes", "topology: self-intersecting triangle pairs of ours entropy (1,1,50,0)",
+     "cow", "keep 0.1;"),
     ("refine", "speed: ratio refine / build_fans(2n)", "", ""),
     ("refine", "cycles: Hausdorff max after cycle *", "", ""),
     ("refine", "cycles: volume change after cycle *", "", ""),
