@@ -46,7 +46,7 @@ Selected once the files exist (row names as ``fancloud_vtk/bench/*.py`` build th
   update, mean``, ``frames: front update, max``, ``peers: ratio ours / best peer, SSE
   max``.
 
-The list is kept short (22 rows when every file is there) so that the README stays
+The list is kept short (about 27 rows when every file is there) so that the README stays
 short; every row of every result is in ``docs/benchmarks.md``.
 
 Usage: ``python scripts/gen_bench_docs.py`` rewrites ``docs/benchmarks.md`` and the
