@@ -2,7 +2,8 @@
 
 Tangent frames of a unit normal, coordinates in a tangent plane, the fast
 polynomial ``atan2`` in ``[0, 2 pi)``, the side of a line seen along two normals,
-the smallest angle of a triangle and a triangle's cross product.
+the smallest angle of a triangle, a triangle's cross product and the squared
+distance of two points.
 """
 
 from __future__ import annotations
@@ -131,6 +132,15 @@ def min_angle_cos(points, a, b, c):
         if cs > best:
             best = cs
     return best
+
+
+@njit(cache=True)
+def dist2(points, a, b):
+    """The squared distance of points a and b."""
+    dx = points[a, 0] - points[b, 0]
+    dy = points[a, 1] - points[b, 1]
+    dz = points[a, 2] - points[b, 2]
+    return dx * dx + dy * dy + dz * dz
 
 
 @njit(cache=True)

@@ -23,7 +23,7 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from ._entropy_kernels import point_cc, point_terms
-from ._geometry_kernels import tangent
+from ._geometry_kernels import dist2, tangent
 from ._heap_kernels import heap_update, sift_down
 from ._ring_kernels import NOT_STEEP, closed_ring, inversions, open_ring
 from ._splice_kernels import hole_triangles, splice_ring
@@ -267,19 +267,11 @@ def _reform(points, normals, R, rlen, ropen, x, p, cand, xs, ys, order, hull, ou
     if h > 0 and max_edge < INF:
         limit = max_edge * max_edge
         for a in range(rlen[x]):
-            limit = max(limit, _dist2(points, x, R[x, a]))
+            limit = max(limit, dist2(points, x, R[x, a]))
         for a in range(h):
-            if _dist2(points, x, out[a]) > limit:
+            if dist2(points, x, out[a]) > limit:
                 return -1, op
     return h, op
-
-
-@njit(cache=True)
-def _dist2(points, a, b):
-    dx = points[a, 0] - points[b, 0]
-    dy = points[a, 1] - points[b, 1]
-    dz = points[a, 2] - points[b, 2]
-    return dx * dx + dy * dy + dz * dz
 
 
 @njit(cache=True)

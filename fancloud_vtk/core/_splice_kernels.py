@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._geometry_kernels import tangent
+from ._geometry_kernels import dist2, in_plane, tangent, triangle_cross
 from ._grid_kernels import AXIS_MAX, lookup
 from .mesh_stats import AREA_TOL, INTERSECTION_TOL, _pair_intersects, _triangle_frames
 
@@ -40,14 +40,6 @@ COS_BOUNDARY_TURN = float(np.cos(np.deg2rad(MAX_BOUNDARY_TURN)))
 MAX_FOLD = 60.0
 COS_MAX_FOLD = float(np.cos(np.deg2rad(MAX_FOLD)))
 
-
-
-@njit(cache=True)
-def _d2(points, a, b):
-    dx = points[a, 0] - points[b, 0]
-    dy = points[a, 1] - points[b, 1]
-    dz = points[a, 2] - points[b, 2]
-    return dx * dx + dy * dy + dz * dz
 
 
 @njit(cache=True)
@@ -86,33 +78,16 @@ def _ear(points, nx, ny, nz, xs, ys, poly, alive, m, a, i, b, R, rlen, limit2, l
     pi = poly[i]
     pb = poly[b]
     if not last:
-        if _has(R, rlen, pa, pb):
-            return -1.0
-        d2 = 0.0
-        for c in range(3):
-            d = points[pb, c] - points[pa, c]
-            d2 += d * d
-        if d2 > limit2:
+        if _has(R, rlen, pa, pb) or dist2(points, pa, pb) > limit2:
             return -1.0
     # 3-d: the triangle's normal against p's, and its smallest angle
-    ux = points[pi, 0] - points[pa, 0]
-    uy = points[pi, 1] - points[pa, 1]
-    uz = points[pi, 2] - points[pa, 2]
-    vx = points[pb, 0] - points[pa, 0]
-    vy = points[pb, 1] - points[pa, 1]
-    vz = points[pb, 2] - points[pa, 2]
-    cx = uy * vz - uz * vy
-    cy = uz * vx - ux * vz
-    cz = ux * vy - uy * vx
+    cx, cy, cz = triangle_cross(points, pa, pi, pb)
     c2 = np.sqrt(cx * cx + cy * cy + cz * cz)
     if c2 == 0.0 or (cx * nx + cy * ny + cz * nz) < MIN_NORMAL_DOT * c2:
         return -1.0
-    la = ux * ux + uy * uy + uz * uz
-    lb = vx * vx + vy * vy + vz * vz
-    wx = points[pb, 0] - points[pi, 0]
-    wy = points[pb, 1] - points[pi, 1]
-    wz = points[pb, 2] - points[pi, 2]
-    lc = wx * wx + wy * wy + wz * wz
+    la = dist2(points, pa, pi)
+    lb = dist2(points, pa, pb)
+    lc = dist2(points, pi, pb)
     # sin of the angle opposite the shortest edge = 2 area / (product of the other two)
     if la <= lb and la <= lc:
         s = c2 / np.sqrt(lb * lc)
@@ -153,14 +128,10 @@ def hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, x
     longest = 0.0  # the hole's longest edge
     for j in range(m):
         q = R[p, j]
-        dx = points[q, 0] - points[p, 0]
-        dy = points[q, 1] - points[p, 1]
-        dz = points[q, 2] - points[p, 2]
-        xs[j] = dx * ux + dy * uy + dz * uz
-        ys[j] = dx * vx + dy * vy + dz * vz
+        xs[j], ys[j] = in_plane(points, p, q, ux, uy, uz, vx, vy, vz)
         alive[j] = True
         if j > 0 or not ropen[p]:
-            longest = max(longest, _d2(points, q, R[p, (j - 1) % m]))
+            longest = max(longest, dist2(points, q, R[p, (j - 1) % m]))
     limit2 = max(max_edge2, longest)
     poly = R[p]
     if ropen[p]:
@@ -181,11 +152,7 @@ def hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, x
         lb = np.sqrt(bx * bx + by * by + bz * bz)
         if dot < COS_BOUNDARY_TURN * la * lb:
             return -1
-        d2 = 0.0
-        for c in range(3):
-            d = points[poly[0], c] - points[poly[m - 1], c]
-            d2 += d * d
-        if d2 > limit2:
+        if dist2(points, poly[0], poly[m - 1]) > limit2:
             return -1
     area = 0.0
     for j in range(m):
@@ -512,15 +479,7 @@ def _cuts(points, R, rlen, ropen, p, q, tris, nt, b0, b1):
 
 @njit(cache=True)
 def _unit_normal(points, a, b, c):
-    ux = points[b, 0] - points[a, 0]
-    uy = points[b, 1] - points[a, 1]
-    uz = points[b, 2] - points[a, 2]
-    vx = points[c, 0] - points[a, 0]
-    vy = points[c, 1] - points[a, 1]
-    vz = points[c, 2] - points[a, 2]
-    cx = uy * vz - uz * vy
-    cy = uz * vx - ux * vz
-    cz = ux * vy - uy * vx
+    cx, cy, cz = triangle_cross(points, a, b, c)
     s = np.sqrt(cx * cx + cy * cy + cz * cz)
     if s == 0.0:
         return 0.0, 0.0, 0.0
