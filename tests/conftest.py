@@ -22,13 +22,20 @@ def fingerprint(*arrays) -> str:
 
 
 def dataset_fingerprint(ds) -> str:
-    """Hash of a PyVista dataset's points and point/field arrays."""
-    parts = [np.asarray(ds.points)]
-    for name in sorted(ds.point_data.keys()):
-        parts.append(np.asarray(ds.point_data[name]))
-    for name in sorted(ds.field_data.keys()):
-        parts.append(np.asarray(ds.field_data[name]))
-    return fingerprint(*parts) + f"{ds.n_cells}"
+    """Hash of a VTK dataset's points and point/field arrays (PyVista's datasets are VTK's:
+    plain VTK calls, so that the VTK-layer tests run without PyVista too)."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    parts = [vtk_to_numpy(ds.GetPoints().GetData())] if ds.GetPoints() is not None else []
+    for data in (ds.GetPointData(), ds.GetFieldData()):
+        arrays = {data.GetArrayName(i): data.GetAbstractArray(i)
+                  for i in range(data.GetNumberOfArrays())}
+        for name in sorted(arrays):
+            a = arrays[name]
+            parts.append(vtk_to_numpy(a) if hasattr(a, "GetNumberOfComponents")
+                         and a.IsNumeric() else np.array(
+                             [a.GetValue(j) for j in range(a.GetNumberOfValues())], str))
+    return fingerprint(*parts) + f"{ds.GetNumberOfCells()}"
 
 
 @pytest.fixture(scope="session")

@@ -5,7 +5,6 @@ import sys
 
 import numpy as np
 import pytest
-import pyvista as pv
 from conftest import dataset_fingerprint
 from shapes import sphere
 from vtkmodules.util.numpy_support import numpy_to_vtk, vtk_to_numpy
@@ -121,7 +120,7 @@ def test_reader_fans_normals_mapper_pipeline(cloud, tmp_path, fmt):
     normals.SplittingOff()  # keep the points one to one
     normals.ConsistencyOff()  # the fan triangles overlap: no manifold to re-orient over
     normals.ComputeCellNormalsOn()
-    assert normals.Update()
+    normals.Update()  # returns None on VTK 9.2 (ParaView 5.11): the output says how it went
 
     out = normals.GetOutput()
     assert out.GetNumberOfPoints() == N
@@ -155,7 +154,7 @@ def test_reader_fans_normals_mapper_pipeline(cloud, tmp_path, fmt):
 def test_output_matches_build_fans_and_input_is_unchanged(cloud):
     p, rgb, label = cloud
     poly = point_cloud(p, RGB=rgb, label=label)
-    before = dataset_fingerprint(pv.wrap(poly))
+    before = dataset_fingerprint(poly)
     mtime = poly.GetMTime()
     fans = FanCloudFilter(k=7, max_angle=80.0)
     fans.SetInputDataObject(0, poly)
@@ -166,7 +165,7 @@ def test_output_matches_build_fans_and_input_is_unchanged(cloud):
     for name in ("points", "offsets", "ring", "normals", "open", "rotated"):
         np.testing.assert_array_equal(getattr(got, name), getattr(expected, name), err_msg=name)
     np.testing.assert_array_equal(got.point_data["RGB"], rgb)
-    assert dataset_fingerprint(pv.wrap(poly)) == before
+    assert dataset_fingerprint(poly) == before
     assert poly.GetMTime() == mtime
     assert poly.GetNumberOfCells() == 0
 
@@ -342,7 +341,8 @@ def test_update_reports_failure_and_plain_update_after_it(cloud):
     p[3, 1] = np.inf
     fans = FanCloudFilter()
     fans.SetInputDataObject(0, point_cloud(p))
-    assert not fans.Update()
+    assert not fans.Update()  # False on VTK >= 9.3, None on 9.2
+    assert fans.GetOutputDataObject(0).GetNumberOfPoints() == 0
     with pytest.raises(FanCloudInputError, match="infinite"):
         run(fans)
 
