@@ -216,6 +216,13 @@ def hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, x
 
 
 @njit(cache=True)
+def _height_over(points, p, q, nx, ny, nz):
+    """The height of q over p's tangent plane (along the unit normal n)."""
+    return ((points[q, 0] - points[p, 0]) * nx + (points[q, 1] - points[p, 1]) * ny
+            + (points[q, 2] - points[p, 2]) * nz)
+
+
+@njit(cache=True)
 def _height(xs, ys, zs, a, b, c, x, y):
     """The height over (x, y) of the plane through the points a, b, c of (xs, ys, zs),
     if (x, y) lies in their triangle (closed); else nan."""
@@ -255,12 +262,8 @@ def _crosses(points, normals, R, rlen, ropen, p, tris, nt, near):
     b1 = points[p].copy()
     for j in range(m):
         q = R[p, j]
-        dx = points[q, 0] - points[p, 0]
-        dy = points[q, 1] - points[p, 1]
-        dz = points[q, 2] - points[p, 2]
-        xs[j] = dx * ux + dy * uy + dz * uz
-        ys[j] = dx * vx + dy * vy + dz * vz
-        zs[j] = dx * nx + dy * ny + dz * nz
+        xs[j], ys[j] = in_plane(points, p, q, ux, uy, uz, vx, vy, vz)
+        zs[j] = _height_over(points, p, q, nx, ny, nz)
         for c in range(3):
             b0[c] = min(b0[c], points[q, c])
             b1[c] = max(b1[c], points[q, c])
@@ -317,12 +320,8 @@ def _crosses(points, normals, R, rlen, ropen, p, tris, nt, near):
                                 and _cuts(points, R, rlen, ropen, p, q, tris, nt, b0, b1)):
                             return True
                         continue
-                    dx = points[q, 0] - points[p, 0]
-                    dy = points[q, 1] - points[p, 1]
-                    dz = points[q, 2] - points[p, 2]
-                    x = dx * ux + dy * uy + dz * uz
-                    y = dx * vx + dy * vy + dz * vz
-                    z = dx * nx + dy * ny + dz * nz
+                    x, y = in_plane(points, p, q, ux, uy, uz, vx, vy, vz)
+                    z = _height_over(points, p, q, nx, ny, nz)
                     h_old = np.nan
                     for j in range(n_old):
                         h_old = _height(xs, ys, zs, m, j, (j + 1) % m, x, y)

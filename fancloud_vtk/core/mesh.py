@@ -360,6 +360,12 @@ def fan_cloud_to_mesh(
     timings["checks"] = time.perf_counter() - t0
     stats["timings"] = timings
     _warn_if_doubtful(fancloud, triangles, stats, holes=close_holes)
+    return _mesh_of(source, spatial, triangles, stats, outliers)
+
+
+def _mesh_of(source: FanCloud, spatial, triangles, stats, outliers) -> TriangleMesh:
+    """The mesh of ``triangles`` (indices in the spatial order ``spatial``) on a copy of
+    the source fan cloud's points, normals and point data."""
     return TriangleMesh(
         source.points.copy(),
         np.ascontiguousarray(spatial[triangles], dtype=np.int64),
@@ -404,14 +410,7 @@ def _manifold_of_rings(source, spatial, fancloud, tri, stats, timings, self_inte
             f"fan_cloud_to_mesh: the fans are the one-rings of a 2-manifold, taken as they "
             f"are; {stats['self_intersections']} pairs of its triangles intersect",
             DoubtfulMeshWarning, stacklevel=3)
-    return TriangleMesh(
-        source.points.copy(),
-        np.ascontiguousarray(spatial[tri], dtype=np.int64),
-        source.normals.copy(),
-        {k: v.copy() for k, v in source.point_data.items()},
-        stats,
-        np.empty(0, np.int64),
-    )
+    return _mesh_of(source, spatial, tri, stats, np.empty(0, np.int64))
 
 
 def _spatial_order(fc: FanCloud):
