@@ -256,8 +256,10 @@ REDUCE_PARAMS: tuple[Param, ...] = (
     Param(
         "method", "choice", "entropy",
         "what each removal minimises: 'entropy' (the point of lowest entropy) or 'error' (the "
-        "point whose removal changes the surface least: the largest distance from its ring's "
-        "plane of the point and of the removed points it carries, the paper's e(r))",
+        "point whose removal changes the surface least: on a triangle mesh the quadric error "
+        "of collapsing it into a ring point, as Garland-Heckbert's; on fans built from points "
+        "the largest distance from its ring's plane of the point and of the removed points "
+        "it carries, the paper's e(r))",
         choices=("entropy", "error"),
     ),
     _COLOR_ARRAY,

@@ -223,3 +223,74 @@ def test_same_result_on_one_and_two_threads_and_the_hierarchy_level():
         one.points, one.ring, one.offsets)
     # the finest level is the input again
     np.testing.assert_array_equal(h.level(fc.n_points).ring, fc.ring)
+
+
+def grid_cube(n=12):
+    """The surface of [0, 1]^3 as an outward-oriented triangle grid, n squares a side."""
+    index = {}
+    pts = []
+    tris = []
+
+    def vid(c):
+        if c not in index:
+            index[c] = len(pts)
+            pts.append(c)
+        return index[c]
+
+    for axis in range(3):
+        for side in (0, n):
+            for i in range(n):
+                for j in range(n):
+                    quad = []
+                    for di, dj in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                        c = [0, 0, 0]
+                        c[axis] = side
+                        c[(axis + 1) % 3] = i + di
+                        c[(axis + 2) % 3] = j + dj
+                        quad.append(vid(tuple(c)))
+                    if side == 0:
+                        quad.reverse()
+                    tris += [(quad[0], quad[1], quad[2]), (quad[0], quad[2], quad[3])]
+    return np.array(pts, float) / n, np.array(tris, np.int64)
+
+
+def test_the_quadric_key_keeps_a_cube_exact():
+    """method='error' on a mesh (the quadric key, issue 24 item 3): a finely gridded cube
+    reduced to a few percent is still the cube: every removal collapses a point into a
+    neighbour on its own faces (zero quadric error) before any corner or edge moves."""
+    p, tri = grid_cube()
+    fc = fan_cloud_of_mesh(p, tri)
+    for exact in (False, True):
+        small = reduce(fc, keep=0.05, method="error", exact=exact)
+        assert small.n_points == round(0.05 * fc.n_points)
+        mesh = _ring_mesh(small)
+        corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+        kept = {tuple(c) for c in small.points}
+        assert all(tuple(c) in kept for c in corners)
+        # every triangle lies in a face of the cube (its normal along an axis)
+        a, b, c = (mesh.points[mesh.triangles[:, k]] for k in range(3))
+        normal = np.cross(b - a, c - a)
+        normal /= np.linalg.norm(normal, axis=1)[:, None]
+        assert np.allclose(np.abs(normal).max(axis=1), 1.0)
+        assert mesh.stats["boundary_edges"] == 0 and mesh.stats["euler_characteristic"] == 2
+
+
+def test_the_quadric_key_is_deterministic_and_logs_its_hierarchy():
+    import numba
+
+    fc = _model("bone.ply")
+    n_threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = reduce(fc, keep=0.1, method="error")
+        numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+        two = reduce(fc, keep=0.1, method="error")
+    finally:
+        numba.set_num_threads(n_threads)
+    assert fingerprint(one.points, one.ring, one.offsets) == fingerprint(
+        two.points, two.ring, two.offsets)
+    h = hierarchy(fc, one.n_points, method="error")
+    level = h.level(one.n_points)
+    assert fingerprint(level.points, level.ring, level.offsets) == fingerprint(
+        one.points, one.ring, one.offsets)
+    np.testing.assert_array_equal(h.level(fc.n_points).ring, fc.ring)

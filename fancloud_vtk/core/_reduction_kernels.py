@@ -25,6 +25,7 @@ from numba import get_num_threads, njit, prange
 from ._entropy_kernels import point_cc, point_terms
 from ._geometry_kernels import dist2, tangent
 from ._heap_kernels import heap_update, sift_down
+from ._quadric_kernels import absorb, quadric_key, star_order
 from ._ring_kernels import NOT_STEEP, closed_ring, inversions, open_ring
 from ._splice_kernels import hole_triangles, splice_ring
 
@@ -55,11 +56,14 @@ Near = namedtuple("Near", ["active", "lo", "inv_h", "start", "table"])
 #: rings, and the old rings of the fans each removal changed; the last five grow
 RemovalLog = namedtuple("RemovalLog", ["order", "detail", "rem_off", "rem_open", "log_off",
                                        "rem_ring", "ent_x", "ent_open", "ent_off", "ent_ring"])
-#: method 'error': the removed points each remaining point carries (linked lists)
-Carried = namedtuple("Carried", ["head", "nxt"])
-#: what ``reform_batch`` gives for a round's accepted removals ``acc``
+#: method 'error': on fans re-formed, the removed points each remaining point carries
+#: (linked lists; else empty); on spliced fans, every point's quadric (``_quadric_kernels``;
+#: else (0, 10)) and the centre its coordinates are taken from
+Carried = namedtuple("Carried", ["head", "nxt", "quad", "centre"])
+#: what ``reform_batch`` gives for a round's accepted removals ``acc`` (``heir``, ``cost``:
+#: the ring point each collapses into and its cost, with quadrics)
 Batch = namedtuple("Batch", ["acc", "buf_off", "buf", "buf_len", "buf_open", "buf_terms", "ok",
-                             "frames"])
+                             "frames", "heir", "cost"])
 
 
 # -- local frames -------------------------------------------------------------------
@@ -415,16 +419,40 @@ def _grow(arr, need):
 
 
 @njit(cache=True)
-def _key(points, normals, R, rlen, dist, curv, cc, col, w, method, head, nxt, x):
+def _key(points, normals, R, rlen, ropen, dist, curv, cc, col, w, method, carried, x):
     if method == METHOD_ERROR:
-        return _deviation(points, normals, x, R[x], rlen[x], head, nxt)
+        if carried.quad.shape[0] > 0:
+            return quadric_key(carried.quad, points, carried.centre, R, rlen, ropen, x)
+        return _deviation(points, normals, x, R[x], rlen[x], carried.head, carried.nxt)
     return w[0] * dist[x] + w[1] * curv[x] + w[2] * cc[x] + w[3] * col[x]
 
 
+@njit(cache=True)
+def _retriangulate(points, normals, R, rlen, ropen, p, max_edge2, folds, near, hx, hy, halive,
+                   htris, carried, js, costs, key_p):
+    """p's hole triangulated (``_splice_kernels.hole_triangles``): (number of triangles,
+    heir, cost). Without quadrics by ear clipping (heir -1, cost 0); with them the
+    cheapest star that keeps the manifold (``_quadric_kernels``), and -2 triangles if it
+    costs more than p's key ``key_p`` (p's key must rise to that cost first); -1: none."""
+    quad = carried.quad
+    if quad.shape[0] == 0:
+        return hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, hx,
+                              hy, halive, htris), -1, 0.0
+    m = star_order(quad, points, carried.centre, R, rlen, ropen, p, js, costs)
+    for t in range(m):
+        nt = hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, hx,
+                            hy, halive, htris, js[t])
+        if nt > 0:
+            if costs[t] > key_p:
+                return -2, R[p, js[t]], costs[t]
+            return nt, R[p, js[t]], costs[t]
+    return -1, -1, INF
+
+
 @njit(cache=True, parallel=True)
-def init_state(points, normals, colors, R, rlen, w, dbar, method, head, nxt):
+def init_state(points, normals, colors, R, rlen, ropen, w, dbar, method, carried):
     """Terms and keys of every point: (dist, curv, cc, col, key) (the heap: :func:`heap_of`).
-    ``head``, ``nxt``: the carried points (method 'error'; empty arrays otherwise)."""
+    ``carried``: see ``Carried``."""
     n = points.shape[0]
     dist = np.zeros(n)
     curv = np.zeros(n)
@@ -435,7 +463,8 @@ def init_state(points, normals, colors, R, rlen, w, dbar, method, head, nxt):
     key = np.empty(n)
     for x in prange(n):
         cc[x] = point_cc(points, curv, x, R[x], rlen[x], dbar)
-        key[x] = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, head, nxt, x)
+        key[x] = _key(points, normals, R, rlen, ropen, dist, curv, cc, col, w, method, carried,
+                      x)
         if rlen[x] == 0:
             key[x] = INF  # an isolated point has no fan to re-form: it stays
     return dist, curv, cc, col, key
@@ -461,9 +490,11 @@ def reduce_steps(cloud, w, dbar, max_edge, splice, near, method, fans, inl, term
     IN, nin, over = inl
     dist, curv, cc, col, key = terms
     order, detail, rem_off, rem_open, log_off, rem_ring, ent_x, ent_open, ent_off, ent_ring = log
-    head, nxt = carried
+    head, nxt, quad = carried.head, carried.nxt, carried.quad
     n = points.shape[0]
     width = R.shape[1]
+    js = np.empty(width, np.int64)
+    costs = np.empty(width)
     cand, xs, ys, ordr, hull = fan_scratch(width)
     aff = np.empty(n if n < 4096 else 4096, np.int64)
     new_rings = np.empty((aff.shape[0], width), np.int32)
@@ -494,11 +525,16 @@ def reduce_steps(cloud, w, dbar, max_edge, splice, near, method, fans, inl, term
                 n_aff += 1
         # re-form them all (or none)
         ok = True
+        heir = -1
         if splice:
             nt = -1
             if not over[p] and n_aff == rlen[p]:  # the fans holding p are its ring's
-                nt = hole_triangles(points, normals, R, rlen, ropen, p, max_edge * max_edge,
-                                    splice == SPLICE_FOLDS, near, hx, hy, halive, htris)
+                nt, heir, c = _retriangulate(points, normals, R, rlen, ropen, p,
+                                             max_edge * max_edge, splice == SPLICE_FOLDS, near,
+                                             hx, hy, halive, htris, carried, js, costs, key[p])
+                if nt == -2:  # a dearer star than p's key: p waits with its true cost
+                    heap_update(heap, hpos, key, p, c, size)
+                    continue
             ok = nt > 0
             for i in range(n_aff if ok else 0):
                 x = aff[i]
@@ -564,11 +600,13 @@ def reduce_steps(cloud, w, dbar, max_edge, splice, near, method, fans, inl, term
         hpos[p] = -1
         for a in range(k):
             _in_remove(IN, nin, over, R[p, a], p)
-        if method == METHOD_ERROR:
+        if head.shape[0] > 0:
             if n_aff > 0:
                 _pass_on(points, head, nxt, p, aff, n_aff)
             else:
                 _pass_on(points, head, nxt, p, R[p], k)
+        if heir >= 0 and quad.shape[0] > 0:
+            absorb(quad, heir, p)
         # the new rings
         for i in range(n_aff):
             x = aff[i]
@@ -586,13 +624,22 @@ def reduce_steps(cloud, w, dbar, max_edge, splice, near, method, fans, inl, term
                 stamp[x] = tag
                 upd[n_upd] = x
                 n_upd += 1
+        if heir >= 0 and quad.shape[0] > 0:  # the heir's new quadric: its ring's keys too
+            if upd.shape[0] < n_upd + rlen[heir]:
+                upd = _grow(upd, n_upd + rlen[heir])
+            for a in range(rlen[heir]):
+                y = R[heir, a]
+                if stamp[y] != tag:
+                    stamp[y] = tag
+                    upd[n_upd] = y
+                    n_upd += 1
         for i in range(n_upd):
             y = upd[i]
             if not active[y]:
                 continue
             cc[y] = point_cc(points, curv, y, R[y], rlen[y], dbar)
-            value = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, head, nxt,
-                         y)
+            value = _key(points, normals, R, rlen, ropen, dist, curv, cc, col, w, method,
+                         carried, y)
             if rlen[y] == 0:
                 value = INF
             heap_update(heap, hpos, key, y, value, size)
@@ -851,17 +898,20 @@ def accept_batch(cands, R, rlen, IN, nin, over, mark, tag):
 
 @njit(cache=True, parallel=True)
 def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-                 with_frames, cc, w, key_now, max_edge, splice, near, defer):
+                 with_frames, cc, w, key_now, max_edge, splice, near, defer, carried, key):
     """Phase A: the new fans of every point whose fan contains an accepted point.
 
-    Returns (buf, buf_len, buf_open, buf_terms, ok, frames): buf[buf_off[i] +
+    Returns (buf, buf_len, buf_open, buf_terms, ok, frames, heir, cost): buf[buf_off[i] +
     j] the new ring of IN[acc[i], j] and buf_terms[...] the entropy terms
     (dist, curv, col) of that fan (they depend on its ring only, and a fan
     changes at most once a round), and with ``key_now`` its entropy key as
     ``update_keys`` would find it (no M_cc weight: then the key needs no
     other fan's new terms; method 'error' keys come in ``_apply``); ok[i]
     0 if some fan cannot be re-formed (2: a retriangulation deferred to a later
-    round, next to an earlier removal of this round); frames[i] the detail of
+    round, next to an earlier removal of this round; 3: with quadrics, the cheapest
+    star that keeps the manifold costs more than acc[i]'s key, which rises to
+    cost[i]); heir[i], cost[i]: with quadrics, the point acc[i] collapses into
+    and the cost (``_retriangulate``); frames[i] the detail of
     acc[i] (offset and normal in its ring's frame; only ``with_frames``). The
     work is split in ``n_chunks`` parts. ``splice``, ``near``: see
     :func:`reduce_steps`; ``defer``: removals to leave for a later round
@@ -876,9 +926,13 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
     buf_terms = np.empty((total, 4))
     ok = np.ones(n_acc, np.int8)  # 1: ok, 0: refused, 2: deferred to a later round
     frames = np.empty((n_acc if with_frames else 0, 6))
+    heir = np.full(n_acc, -1, np.int64)
+    cost = np.zeros(n_acc)
     for ch in prange(n_chunks):
         cand, xs, ys, ordr, hull = fan_scratch(width)
         hx, hy, halive, htris = hole_scratch(width)
+        js = np.empty(width, np.int64)
+        costs = np.empty(width)
         for i in range((n_acc * ch) // n_chunks, (n_acc * (ch + 1)) // n_chunks):
             p = acc[i]
             nt = 0
@@ -888,10 +942,13 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
                     ok[i] = 2
                 else:
                     if nin[p] == rlen[p]:  # the fans holding p are its ring's
-                        nt = hole_triangles(points, normals, R, rlen, ropen, p,
-                                            max_edge * max_edge, splice == SPLICE_FOLDS, near,
-                                            hx, hy, halive, htris)
-                    if nt < 0:
+                        nt, heir[i], cost[i] = _retriangulate(
+                            points, normals, R, rlen, ropen, p, max_edge * max_edge,
+                            splice == SPLICE_FOLDS, near, hx, hy, halive, htris, carried, js,
+                            costs, key[p])
+                    if nt == -2:
+                        ok[i] = 3
+                    elif nt < 0:
                         ok[i] = 0
             for j in range(nin[p] if ok[i] == 1 else 0):
                 x = IN[p, j]
@@ -922,15 +979,16 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
             for c in range(3):
                 frames[i, c] = d[c]
                 frames[i, 3 + c] = e[c]
-    return buf, buf_len, buf_open, buf_terms, ok, frames
+    return buf, buf_len, buf_open, buf_terms, ok, frames, heir, cost
 
 
 @njit(cache=True)
-def _plan_commit(rlen, IN, nin, key, acc, ok, limit, counters):
+def _plan_commit(rlen, IN, nin, key, acc, ok, cost, limit, counters):
     """Which removals a round makes and where their logs go.
 
     The first ``limit`` accepted points whose fans can all be re-formed, in
-    index order (the others keep their place, with an infinite key). Returns
+    index order (the others keep their place, with an infinite key, or with
+    ok 3 their star's cost). Returns
     (idx into acc, and the running offsets of the removed rings, the log
     entries and the logged rings: each (m + 1,), starting at the totals so far).
     """
@@ -941,6 +999,8 @@ def _plan_commit(rlen, IN, nin, key, acc, ok, limit, counters):
         if ok[i] != 1:
             if ok[i] == 0:
                 key[acc[i]] = INF
+            elif ok[i] == 3:
+                key[acc[i]] = cost[i]
             continue
         if m == limit:
             break
@@ -994,14 +1054,15 @@ def _write_logs(R, rlen, ropen, IN, nin, acc, frames, idx, rem_at, ent_at, ring_
 @njit(cache=True, parallel=True)
 def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
            buf_open, buf_terms, dist, curv, col, key_now, stamp, tag, n_chunks, points, normals,
-           head, nxt):
+           carried, heir):
     """Make the removals ``acc[idx]``: fans re-formed (with their entropy terms), in-lists
     kept; the changed fans, once.
 
     Method 'error' (``head`` not empty): p and the points it carried pass to
     their heirs, then the changed fans get their keys (:func:`_deviation`);
     heirs and changed fans are in p's neighbourhood, which no other removal
-    of the round touches.
+    of the round touches. With quadrics, p's heir ``heir[idx[j]]`` takes p's
+    quadric (the keys then come from ``update_keys``).
 
     The same result as making them one after the other, in two parallel
     passes. The accepted points' neighbourhoods (p, its ring, its in-list)
@@ -1013,6 +1074,7 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
     own range of points (``n_chunks`` ranges), so each in-list sees the
     serial sequence.
     """
+    head, nxt, quad = carried.head, carried.nxt, carried.quad
     m = idx.shape[0]
     ch_off = np.empty(m + 1, np.int64)  # the changed fans of removal j
     ev_off = np.empty(m + 1, np.int64)  # room for its events
@@ -1041,6 +1103,8 @@ def _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, b
         if head.shape[0] > 0:  # method 'error': p and what it carried to their heirs
             row, m_h = _heirs_of(R, rlen, IN, nin, p)
             _pass_on(points, head, nxt, p, row, m_h)
+        if quad.shape[0] > 0 and heir[i] >= 0:
+            absorb(quad, heir[i], p)
         for a in range(rlen[p]):
             ev_y[e] = R[p, a]
             ev_x[e] = p
@@ -1103,10 +1167,10 @@ def commit_batch(cloud, fans, inl, terms, batch, key_now, limit, counters, log, 
     R, rlen, ropen, active = fans
     IN, nin, over = inl
     dist, curv, _, col, key = terms
-    acc, buf_off, buf, buf_len, buf_open, buf_terms, ok, frames = batch
+    acc, buf_off, buf, buf_len, buf_open, buf_terms, ok, frames, heir, cost = batch
     order, detail, rem_off, rem_open, log_off, rem_ring, ent_x, ent_open, ent_off, ent_ring = log
-    head, nxt = carried
-    idx, rem_at, ent_at, ring_at = _plan_commit(rlen, IN, nin, key, acc, ok, limit, counters)
+    idx, rem_at, ent_at, ring_at = _plan_commit(rlen, IN, nin, key, acc, ok, cost, limit,
+                                                counters)
     m = len(idx)
     if write_logs:
         _write_logs(R, rlen, ropen, IN, nin, acc, frames, idx, rem_at, ent_at, ring_at,
@@ -1120,17 +1184,18 @@ def commit_batch(cloud, fans, inl, terms, batch, key_now, limit, counters, log, 
     counters[5] += 1
     return _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
                   buf_open, buf_terms, dist, curv, col, key_now, stamp, counters[5],
-                  get_num_threads() if m > 64 else 1, points, normals, head, nxt)
+                  get_num_threads() if m > 64 else 1, points, normals, carried, heir)
 
 
 @njit(cache=True, parallel=True)
-def update_keys(points, normals, R, rlen, dist, curv, cc, col, key, w, method, dbar, ids, head,
-                nxt):
+def update_keys(points, normals, R, rlen, ropen, dist, curv, cc, col, key, w, method, dbar, ids,
+                carried):
     """M_cc and the keys of the fans ``ids`` (after every fan of the round has its terms)."""
     for i in prange(ids.shape[0]):
         y = ids[i]
         cc[y] = point_cc(points, curv, y, R[y], rlen[y], dbar)
-        value = _key(points, normals, R, rlen, dist, curv, cc, col, w, method, head, nxt, y)
+        value = _key(points, normals, R, rlen, ropen, dist, curv, cc, col, w, method, carried,
+                     y)
         key[y] = INF if rlen[y] == 0 else value
 
 

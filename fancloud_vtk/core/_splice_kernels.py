@@ -102,10 +102,13 @@ def _ear(points, nx, ny, nz, xs, ys, poly, alive, m, a, i, b, R, rlen, limit2, l
 
 @njit(cache=True)
 def hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, xs, ys, alive,
-                   tris):
+                   tris, star=-1):
     """The triangulation of p's hole: rows of ``tris`` (counter-clockwise around p's
     normal, as the mesh's), returns their number (``rlen[p] - 2``) or -1 if the hole
     cannot be triangulated without breaking the manifold (see the module).
+
+    ``star`` -1: by ear clipping; a ring position j: the star from p's j-th ring point
+    (p collapsed into it, ``_quadric_kernels``).
 
     The hole is p's ring, closed by the edge from its last to its first point when p's
     fan is open (a boundary point: that edge becomes boundary, and the boundary must turn
@@ -160,6 +163,75 @@ def hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, x
         area += xs[j] * ys[jn] - xs[jn] * ys[j]
     if area <= 0.0:
         return -1
+    if star >= 0:
+        nt = _star(points, nx, ny, nz, xs, ys, poly, m, star, R, rlen, limit2, p, tris)
+    else:
+        nt = _ears(points, nx, ny, nz, xs, ys, poly, alive, m, R, rlen, limit2, tris)
+    if nt < 0:
+        return -1
+    if folds and not _folds_kept(points, R, rlen, ropen, p, tris, nt):
+        return -1
+    if _crosses(points, normals, R, rlen, ropen, p, tris, nt, near):
+        return -1
+    return nt
+
+
+@njit(cache=True)
+def _star(points, nx, ny, nz, xs, ys, poly, m, j, R, rlen, limit2, p, tris):
+    """The star triangulation of the hole ``poly[:m]`` (in p's plane: ``xs``, ``ys``) from
+    its j-th point: its number of triangles, or -1 if it is not a triangulation of the
+    hole (a triangle turned over in p's plane, or the star winding more than once), a new
+    edge exists already or is longer than ``limit2`` (squared), or a triangle is
+    degenerate, folds against p's normal or turns over against p's old triangle."""
+    q = poly[j]
+    swept = 0.0
+    nt = 0
+    for i in range(1, m - 1):
+        a = (j + i) % m
+        b = (j + i + 1) % m
+        ax = xs[a] - xs[j]
+        ay = ys[a] - ys[j]
+        bx = xs[b] - xs[j]
+        by = ys[b] - ys[j]
+        cr = ax * by - ay * bx
+        if cr <= 0.0:
+            return -1
+        swept += np.arctan2(cr, ax * bx + ay * by)
+        pa = poly[a]
+        pb = poly[b]
+        if i >= 2 and (_has(R, rlen, q, pa) or dist2(points, q, pa) > limit2):
+            return -1
+        cx, cy, cz = triangle_cross(points, q, pa, pb)
+        c2 = np.sqrt(cx * cx + cy * cy + cz * cz)
+        if c2 == 0.0 or (cx * nx + cy * ny + cz * nz) < MIN_NORMAL_DOT * c2:
+            return -1
+        ox, oy, oz = triangle_cross(points, p, pa, pb)
+        if cx * ox + cy * oy + cz * oz <= 0.0:
+            return -1
+        la = dist2(points, q, pa)
+        lb = dist2(points, q, pb)
+        lc = dist2(points, pa, pb)
+        if la <= lb and la <= lc:
+            s = c2 / np.sqrt(lb * lc)
+        elif lb <= lc:
+            s = c2 / np.sqrt(la * lc)
+        else:
+            s = c2 / np.sqrt(la * lb)
+        if s < MIN_SINE:
+            return -1
+        tris[nt, 0] = q
+        tris[nt, 1] = pa
+        tris[nt, 2] = pb
+        nt += 1
+    if swept >= 2.0 * np.pi - 1e-9:
+        return -1
+    return nt
+
+
+@njit(cache=True)
+def _ears(points, nx, ny, nz, xs, ys, poly, alive, m, R, rlen, limit2, tris):
+    """The hole ``poly[:m]`` triangulated by ear clipping, best ear first: its number of
+    triangles, or -1 if some step finds no valid ear (``_ear``)."""
     left = m
     nt = 0
     while left > 3:
@@ -207,12 +279,7 @@ def hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, x
     tris[nt, 0] = poly[a]
     tris[nt, 1] = poly[i]
     tris[nt, 2] = poly[b]
-    nt += 1
-    if folds and not _folds_kept(points, R, rlen, ropen, p, tris, nt):
-        return -1
-    if _crosses(points, normals, R, rlen, ropen, p, tris, nt, near):
-        return -1
-    return nt
+    return nt + 1
 
 
 @njit(cache=True)

@@ -21,6 +21,7 @@ import numpy as np
 
 from . import _csr_kernels as CsrK
 from . import _heap_kernels as HeapK
+from . import _quadric_kernels as QK
 from . import _reduction_kernels as RK
 from . import _splice_kernels as SK
 from ._entropy_kernels import mean_distance
@@ -96,10 +97,16 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
     method : {'entropy', 'error'}, default: 'entropy'
         ``'entropy'`` removes the point of lowest entropy; ``'error'`` the
         point whose removal changes the surface least (the paper's Figure
-        10b): the largest distance from the plane of its ring of the point
-        and of the removed points it carries (each removed point is carried
-        on by the nearest of the fans it was in; the paper's e(r) of
-        section 8, the maximum deviation of all descendants).
+        10b). When the removals retriangulate (a triangle mesh's fans, see
+        ``removal``) that is a quadric error, as Garland and Heckbert's:
+        every point holds the planes of the surface it stands for, and p's
+        hole becomes the star from the ring point q that minimises
+        ``v_q^T (Q_p + Q_q) v_q`` and keeps the manifold (p collapsed into
+        q, which takes p's planes). On fans re-formed from points it is the
+        largest distance from the plane of p's ring of p and of the removed
+        points it carries (each removed point is carried on by the nearest
+        of the fans it was in; the paper's e(r) of section 8, the maximum
+        deviation of all descendants).
     colors : None, str or numpy.ndarray, optional
         Colours for the colour term (see :func:`~fancloud_vtk.entropy`).
     exact : bool, default: False
@@ -188,7 +195,11 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     if method not in METHODS:
         raise ValueError(f"method must be 'entropy' or 'error', got {method!r}")
     w = check_weights(weights)
-    splice = RK.SPLICE_FOLDS if splices(fc, removal) else RK.SPLICE_OFF
+    # the fold rule guards the entropy order; the quadric error already prices a fold (and
+    # refusing folds leaves the quadric collapse only costly removals on real models)
+    splice = RK.SPLICE_OFF
+    if splices(fc, removal):
+        splice = RK.SPLICE_ANY if method == "error" else RK.SPLICE_FOLDS
     max_edge = _max_edge(max_spacing, n, target)
     rgb = as_colors(colors, fc.point_data, n)
     if method == "entropy" and w[3] > 0 and rgb is None:
@@ -216,12 +227,18 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     near = RK.Near(active, np.asarray(grid.lo, np.float64), 1.0 / grid.h, grid.start,
                    grid.table)
     IN, nin, over = RK.build_in_lists(R, rlen, IN_WIDTH, numba.get_num_threads())
-    # method 'error': the removed points each remaining point carries (_reduction_kernels)
-    m_carry = n if method == "error" else 0
+    # method 'error': on spliced fans every point's quadric (_quadric_kernels), else the
+    # removed points each remaining point carries (_reduction_kernels)
+    quadrics = method == "error" and splice != RK.SPLICE_OFF
+    m_carry = n if method == "error" and not quadrics else 0
     head = np.full(m_carry, -1, np.int64)
     nxt = np.full(m_carry, -1, np.int64)
-    dist, curv, cc, colt, key = RK.init_state(pts, nrm, col, R, rlen, np.array(w), dbar,
-                                              METHODS[method], head, nxt)
+    centre = pts.mean(axis=0) if n else np.zeros(3)
+    quad = (QK.initial_quadrics(pts, R, rlen, ropen, centre) if quadrics
+            else np.zeros((0, 10)))
+    carried = RK.Carried(head, nxt, quad, centre)
+    dist, curv, cc, colt, key = RK.init_state(pts, nrm, col, R, rlen, ropen, np.array(w), dbar,
+                                              METHODS[method], carried)
     n_remove = n - target
     # the logs (np.empty: pages that a reduction without logs never writes cost nothing)
     order = np.empty(n_remove, np.int64)
@@ -241,7 +258,6 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     fans = RK.FanTable(R, rlen, ropen, active)
     inl = RK.InLists(IN, nin, over)
     terms = RK.Terms(dist, curv, cc, colt, key)
-    carried = RK.Carried(head, nxt)
     log = _Logs(order, detail, rem_off, rem_open, log_off, rem_ring, ent_x, ent_open, ent_off,
                 ent_ring)
     if exact:
@@ -263,8 +279,8 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
         # every point left would sharpen a fold: go on without that rule (the manifold and
         # its topology are still kept)
         blocked = np.flatnonzero(active & np.isinf(key))
-        RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, wa, METHODS[method], dbar,
-                       blocked, head, nxt)
+        RK.update_keys(pts, nrm, R, rlen, ropen, dist, curv, cc, colt, key, wa,
+                       METHODS[method], dbar, blocked, carried)
         if exact:
             heap, hpos = HeapK.heap_of(key, active)
             while counters[1] < n_remove:
@@ -373,12 +389,13 @@ def _rounds(cloud, w, dbar, max_edge, splice, near, method, fans, inl, terms, co
     R, rlen, ropen, active = fans
     IN, nin, over = inl
     dist, curv, cc, colt, key = terms
-    head, nxt = carried
+    quadrics = carried.quad.shape[0] > 0
     n = len(pts)
     n_chunks = 2 * numba.get_num_threads()
     width = R.shape[1]
-    # keys straight from the re-form, unless M_cc (which reads other fans' new terms) counts
-    key_now = not (method == RK.METHOD_ENTROPY and w[2] > 0)
+    # keys straight from the re-form, unless M_cc (which reads other fans' new terms) counts,
+    # or quadrics (the heirs' new quadrics change their rings' keys)
+    key_now = not (method == RK.METHOD_ENTROPY and w[2] > 0) and not quadrics
     marks = RoundMarks(n)
     while counters[1] < n_remove:
         want = max(64, int(counters[0] * ROUND_FRACTION))
@@ -404,16 +421,20 @@ def _rounds(cloud, w, dbar, max_edge, splice, near, method, fans, inl, terms, co
         defer = np.zeros(len(acc), bool)
         if splice:  # neighbours in space go one after the other (in later rounds)
             SK.defer_overlaps(pts, R, rlen, acc, near.lo, near.inv_h, defer)
-        buf, buf_len, buf_open, buf_terms, ok, frames = RK.reform_batch(
+        buf, buf_len, buf_open, buf_terms, ok, frames, heir, cost = RK.reform_batch(
             pts, nrm, col, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-            write_logs, cc, w, key_now, max_edge, splice, near, defer)
-        batch = RK.Batch(acc, buf_off, buf, buf_len, buf_open, buf_terms, ok, frames)
+            write_logs, cc, w, key_now, max_edge, splice, near, defer, carried, key)
+        batch = RK.Batch(acc, buf_off, buf, buf_len, buf_open, buf_terms, ok, frames, heir,
+                         cost)
         changed = RK.commit_batch(cloud, fans, inl, terms, batch, key_now,
                                   n_remove - counters[1], counters, logs.bundle(), stamp,
                                   carried, write_logs)
+        if quadrics:  # the changed fans and the heirs' rings
+            counters[5] += 1
+            changed = QK.with_rings(R, rlen, active, changed, stamp, counters[5])
         if not key_now:
-            RK.update_keys(pts, nrm, R, rlen, dist, curv, cc, colt, key, w, method, dbar,
-                           changed, head, nxt)
+            RK.update_keys(pts, nrm, R, rlen, ropen, dist, curv, cc, colt, key, w, method,
+                           dbar, changed, carried)
         _report(progress, counters[1] / max(n_remove, 1), "reduction")
 
 
@@ -441,7 +462,9 @@ def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, metho
         Entropy weights ``(a1, a2, a3, a4)``: distance, curvature, curvature
         change, colour. (1, 0, 0, 0) gives an almost uniform result.
     method : {'entropy', 'error'}, default: 'entropy'
-        What the next removal minimises.
+        What the next removal minimises: the entropy, or the surface change
+        (on a triangle mesh the quadric error of collapsing the point into a
+        ring point; see :func:`hierarchy`).
     colors : None, str or numpy.ndarray, optional
         Colours for the colour term (default: the input's colour array).
     exact : bool, default: False
