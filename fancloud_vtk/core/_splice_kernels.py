@@ -311,7 +311,9 @@ def _crosses(points, normals, R, rlen, ropen, p, tris, nt, near):
     neither p nor in its ring and lies over the hole must not lie between them (it would
     end up on the other side of the surface), and its fan's triangles must not cut the new
     ones. Only points still in the cloud (``active``) count; the points of the same sheet
-    around the hole do not lie over it, so this costs little away from thin parts."""
+    around the hole do not lie over it, so this costs little away from thin parts. A sheet
+    that p's old fan already cuts (a mesh that intersects itself, as the cow's tail and
+    body) does not count: the removal makes no crossing that was not there."""
     active, lo, inv_h, start, table = near
     m = rlen[p]
     ux, uy, uz, vx, vy, vz = tangent(normals[p, 0], normals[p, 1], normals[p, 2])
@@ -354,6 +356,11 @@ def _crosses(points, normals, R, rlen, ropen, p, tris, nt, near):
         i0[c] = min(max(int((b0[c] - spoke - lo[c]) * inv_h), 0), AXIS_MAX)
         i1[c] = min(max(int((b1[c] + spoke - lo[c]) * inv_h), 0), AXIS_MAX)
     n_old = m - 1 if ropen[p] else m
+    old = np.empty((n_old, 3), np.int64)  # p's fan
+    for j in range(n_old):
+        old[j, 0] = p
+        old[j, 1] = R[p, j]
+        old[j, 2] = R[p, (j + 1) % m]
     for iz in range(i0[2], i1[2] + 1):
         for iy in range(i0[1], i1[1] + 1):
             for ix in range(i0[0], i1[0] + 1):
@@ -384,7 +391,9 @@ def _crosses(points, normals, R, rlen, ropen, p, tris, nt, near):
                         # (not those of the ring's own neighbours: the same sheet, whose
                         # folds _folds_kept watches)
                         if (not _in_two_ring(R, rlen, p, q)
-                                and _cuts(points, R, rlen, ropen, p, q, tris, nt, b0, b1)):
+                                and _cuts(points, R, rlen, ropen, p, q, tris, nt, b0, b1)
+                                and not _cuts(points, R, rlen, ropen, p, q, old, n_old, b0,
+                                              b1)):
                             return True
                         continue
                     x, y = in_plane(points, p, q, ux, uy, uz, vx, vy, vz)
@@ -397,7 +406,9 @@ def _crosses(points, normals, R, rlen, ropen, p, tris, nt, near):
                     if np.isnan(h_old):
                         # beside the hole: its triangles may still reach over it
                         if (not _in_two_ring(R, rlen, p, q)
-                                and _cuts(points, R, rlen, ropen, p, q, tris, nt, b0, b1)):
+                                and _cuts(points, R, rlen, ropen, p, q, tris, nt, b0, b1)
+                                and not _cuts(points, R, rlen, ropen, p, q, old, n_old, b0,
+                                              b1)):
                             return True
                         continue
                     h_new = np.nan
@@ -407,10 +418,10 @@ def _crosses(points, normals, R, rlen, ropen, p, tris, nt, near):
                             break
                     if np.isnan(h_new):
                         continue
-                    if min(h_old, h_new) < z < max(h_old, h_new):
-                        return True
-                    # q is over the hole: its triangles must not cut the new ones
-                    if _cuts(points, R, rlen, ropen, p, q, tris, nt, b0, b1):
+                    if ((min(h_old, h_new) < z < max(h_old, h_new)
+                         # q is over the hole: its triangles must not cut the new ones
+                         or _cuts(points, R, rlen, ropen, p, q, tris, nt, b0, b1))
+                            and not _cuts(points, R, rlen, ropen, p, q, old, n_old, b0, b1)):
                         return True
     return False
 
