@@ -27,7 +27,7 @@ from ._geometry_kernels import dist2, tangent
 from ._heap_kernels import heap_update, sift_down
 from ._quadric_kernels import absorb, quadric_key, star_order
 from ._ring_kernels import NOT_STEEP, closed_ring, inversions, open_ring
-from ._splice_kernels import hole_triangles, splice_ring
+from ._splice_kernels import folds_onto_ring, hole_triangles, splice_ring
 
 METHOD_ENTROPY = 0
 METHOD_ERROR = 1
@@ -432,7 +432,8 @@ def _retriangulate(points, normals, R, rlen, ropen, p, max_edge2, folds, near, h
                    htris, carried, js, costs, key_p):
     """p's hole triangulated (``_splice_kernels.hole_triangles``): (number of triangles,
     heir, cost). Without quadrics by ear clipping (heir -1, cost 0); with them the
-    cheapest star that keeps the manifold (``_quadric_kernels``), and -2 triangles if it
+    cheapest star that keeps the manifold and folds onto none of the ring's fans
+    (``_quadric_kernels``; ``js``, ``costs``: scratch), and -2 triangles if it
     costs more than p's key ``key_p`` (p's key must rise to that cost first); -1: none."""
     quad = carried.quad
     if quad.shape[0] == 0:
@@ -442,7 +443,7 @@ def _retriangulate(points, normals, R, rlen, ropen, p, max_edge2, folds, near, h
     for t in range(m):
         nt = hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, hx,
                             hy, halive, htris, js[t])
-        if nt > 0:
+        if nt > 0 and not folds_onto_ring(points, R, rlen, ropen, p, htris, nt):
             if costs[t] > key_p:
                 return -2, R[p, js[t]], costs[t]
             return nt, R[p, js[t]], costs[t]
@@ -531,7 +532,8 @@ def reduce_steps(cloud, w, dbar, max_edge, splice, near, method, fans, inl, term
             if not over[p] and n_aff == rlen[p]:  # the fans holding p are its ring's
                 nt, heir, c = _retriangulate(points, normals, R, rlen, ropen, p,
                                              max_edge * max_edge, splice == SPLICE_FOLDS, near,
-                                             hx, hy, halive, htris, carried, js, costs, key[p])
+                                             hx, hy, halive, htris, carried, js, costs,
+                                             key[p])
                 if nt == -2:  # a dearer star than p's key: p waits with its true cost
                     heap_update(heap, hpos, key, p, c, size)
                     continue

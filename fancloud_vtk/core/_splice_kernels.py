@@ -701,3 +701,83 @@ def splice_ring(R, rlen, ropen, x, p, tris, nt, out):
             if out[a] == out[b]:
                 return -1
     return size
+
+
+
+
+@njit(cache=True)
+def _boxes_meet(points, local, t, u):
+    for c in range(3):
+        if (max(points[local[t, 0], c], points[local[t, 1], c], points[local[t, 2], c])
+                < min(points[local[u, 0], c], points[local[u, 1], c], points[local[u, 2], c])):
+            return False
+        if (min(points[local[t, 0], c], points[local[t, 1], c], points[local[t, 2], c])
+                > max(points[local[u, 0], c], points[local[u, 1], c], points[local[u, 2], c])):
+            return False
+    return True
+
+
+@njit(cache=True)
+def folds_onto_ring(points, R, rlen, ropen, p, tris, nt):
+    """Whether a new triangle (``tris[:nt]``) intersects a triangle of a fan of p's ring
+    that p's old fan did not intersect: a fold of the surface onto itself next to the hole
+    (the crossing test leaves the ring's own fans to this). Only with the quadric key,
+    which has no fold rule."""
+    m = rlen[p]
+    n_old = m - 1 if ropen[p] else m
+    n_ring = 0
+    for j in range(m):
+        n_ring += rlen[R[p, j]]
+    # the new triangles, p's old fan, then the ring's triangles without p (each once: a
+    # triangle of two ring points is kept by the first of them in p's ring)
+    local = np.empty((nt + n_old + n_ring, 3), np.int64)
+    for t in range(nt):
+        for c in range(3):
+            local[t, c] = tris[t, c]
+    for j in range(n_old):
+        local[nt + j, 0] = p
+        local[nt + j, 1] = R[p, j]
+        local[nt + j, 2] = R[p, (j + 1) % m]
+    n = nt + n_old
+    for j in range(m):
+        r = R[p, j]
+        k = rlen[r]
+        for a in range(k - 1 if ropen[r] else k):
+            u = R[r, a]
+            v = R[r, (a + 1) % k]
+            if u == p or v == p:
+                continue
+            dup = False
+            for jj in range(j):
+                if R[p, jj] == u or R[p, jj] == v:
+                    dup = True
+                    break
+            if not dup:
+                local[n, 0] = r
+                local[n, 1] = u
+                local[n, 2] = v
+                n += 1
+    local = local[:n]
+    normal, longest, _, _, flat = _triangle_frames(points, local, AREA_TOL, INTERSECTION_TOL)
+    for u in range(nt + n_old, n):
+        if flat[u]:
+            continue
+        cut = False
+        for t in range(nt):
+            if (not flat[t] and _boxes_meet(points, local, t, u)
+                    and _pair_intersects(points, local, normal, longest, t, u,
+                                         INTERSECTION_TOL)):
+                cut = True
+                break
+        if not cut:
+            continue
+        already = False
+        for t in range(nt, nt + n_old):
+            if (not flat[t] and _boxes_meet(points, local, t, u)
+                    and _pair_intersects(points, local, normal, longest, t, u,
+                                         INTERSECTION_TOL)):
+                already = True
+                break
+        if not already:
+            return True
+    return False
