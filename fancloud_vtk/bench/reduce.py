@@ -69,6 +69,13 @@ TARGET_COLOUR_RATIO = 1.0  #: colour error ours (with the colour weight) / best 
 #: our methods with the colour weight (only run on data with colour), and their weights
 COLOUR_METHODS = {"ours-colour": "(1,1,50,1)", "ours-colour-distance": "(1,0,0,1)"}
 
+#: issue 24's figures against quadric edge collapse on input vertices (the reference):
+#: at these kept fractions, method 'error' at most its mean and max Hausdorff, the default
+#: weights at most this times its max Hausdorff and below its feature error
+SUBSET_REF = "quadric-subset"
+SUBSET_KEEPS = (0.42, 0.176, 0.1)
+TARGET_SHAPE_MAX_RATIO = 2.0
+
 DEFAULT_KEEPS = (0.42, 0.176)
 CURVE_KEEPS = (0.1, 0.176, 0.3, 0.42, 0.6)  #: the extra fractions of the error curves ...
 CURVE_MAX_N = 50_000  #: ... on data sets up to this size
@@ -239,6 +246,8 @@ def figure_rows(res: dict) -> list[dict]:
                                                                              (SPEED_KEEP,)))
         for keep in keeps:
             rows += _quality_rows(ds, data, keep, _judged(keep, QUALITY_KEEPS))
+        for keep in keeps:
+            rows += _subset_rows(ds, data, keep, _judged(keep, SUBSET_KEEPS))
         if ds["has_colour"]:
             for keep in keeps:
                 rows += _colour_rows(ds, data, keep, _judged(keep, QUALITY_KEEPS))
@@ -364,6 +373,38 @@ def _quality_rows(ds, data, keep, judged) -> list[dict]:
         else:
             rows.append(_row(name, data, params, "n/a", "x", target,
                              "not measured: " + _why(mine, q)))
+    return rows
+
+
+def _subset_rows(ds, data, keep, judged) -> list[dict]:
+    """Issue 24's figures: ours against quadric edge collapse on input vertices (the same
+    kind of result: a subset of the input points), where both ran."""
+    ref = _pick(ds, SUBSET_REF, keep)
+    if ref is None or ref["status"] != "ok":
+        return []
+    rows = []
+    for method, key, name, ratio, strict in (
+        ("ours-error", "hausdorff_mean", "mean Hausdorff ours error", 1.0, False),
+        ("ours-error", "hausdorff_max", "max Hausdorff ours error", 1.0, False),
+        (OURS, "hausdorff_max", "max Hausdorff ours (1,1,50,0)", TARGET_SHAPE_MAX_RATIO,
+         False),
+        (OURS, "feature_mean", "feature error ours (1,1,50,0)", 1.0, True),
+    ):
+        mine = _pick(ds, method, keep)
+        if mine is None:
+            continue
+        a, b = _value(mine, key), _value(ref, key)
+        full = f"quality: {name} / quadric edge collapse on input vertices"
+        target = (f"< {ratio:g}" if strict else f"<= {ratio:g}") if judged else ""
+        if a is None or not b:
+            rows.append(_row(full, data, f"keep {keep:g}", "n/a", "x", target,
+                             "not measured: " + _why(mine, ref)))
+            continue
+        v = a / b
+        ok = v < ratio if strict else v <= ratio
+        rows.append(_row(full, data, f"keep {keep:g}; ours {a:.3g}, reference {b:.3g} "
+                         "(fraction of bbox diagonal)", f"{v:.3f}", "x", target,
+                         _ok(ok) if judged else ""))
     return rows
 
 

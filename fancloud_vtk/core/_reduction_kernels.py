@@ -429,7 +429,7 @@ def _key(points, normals, R, rlen, ropen, dist, curv, cc, col, w, method, carrie
 
 @njit(cache=True)
 def _retriangulate(points, normals, R, rlen, ropen, p, max_edge2, folds, near, hx, hy, halive,
-                   htris, carried, js, costs, key_p):
+                   htris, carried, js, costs, key_p, method):
     """p's hole triangulated (``_splice_kernels.hole_triangles``): (number of triangles,
     heir, cost). Without quadrics by ear clipping (heir -1, cost 0); with them the
     cheapest star that keeps the manifold and folds onto none of the ring's fans
@@ -443,11 +443,15 @@ def _retriangulate(points, normals, R, rlen, ropen, p, max_edge2, folds, near, h
     for t in range(m):
         nt = hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, hx,
                             hy, halive, htris, js[t])
-        if nt > 0 and not folds_onto_ring(points, R, rlen, ropen, p, htris, nt):
-            if costs[t] > key_p:
+        if nt > 0 and (folds or not folds_onto_ring(points, R, rlen, ropen, p, htris, nt)):
+            if method == METHOD_ERROR and costs[t] > key_p:
                 return -2, R[p, js[t]], costs[t]
             return nt, R[p, js[t]], costs[t]
-    return -1, -1, INF
+    if method == METHOD_ERROR or m == 0:
+        return -1, -1, INF
+    # the entropy order: no star keeps the manifold, ears may (q takes p's planes anyway)
+    return hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, hx, hy,
+                          halive, htris), R[p, js[0]], costs[0]
 
 
 @njit(cache=True, parallel=True)
@@ -533,7 +537,7 @@ def reduce_steps(cloud, w, dbar, max_edge, splice, near, method, fans, inl, term
                 nt, heir, c = _retriangulate(points, normals, R, rlen, ropen, p,
                                              max_edge * max_edge, splice == SPLICE_FOLDS, near,
                                              hx, hy, halive, htris, carried, js, costs,
-                                             key[p])
+                                             key[p], method)
                 if nt == -2:  # a dearer star than p's key: p waits with its true cost
                     heap_update(heap, hpos, key, p, c, size)
                     continue
@@ -626,7 +630,8 @@ def reduce_steps(cloud, w, dbar, max_edge, splice, near, method, fans, inl, term
                 stamp[x] = tag
                 upd[n_upd] = x
                 n_upd += 1
-        if heir >= 0 and quad.shape[0] > 0:  # the heir's new quadric: its ring's keys too
+        if heir >= 0 and quad.shape[0] > 0 and method == METHOD_ERROR:
+            # the heir's new quadric: its ring's keys too
             if upd.shape[0] < n_upd + rlen[heir]:
                 upd = _grow(upd, n_upd + rlen[heir])
             for a in range(rlen[heir]):
@@ -900,7 +905,8 @@ def accept_batch(cands, R, rlen, IN, nin, over, mark, tag):
 
 @njit(cache=True, parallel=True)
 def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-                 with_frames, cc, w, key_now, max_edge, splice, near, defer, carried, key):
+                 with_frames, cc, w, key_now, max_edge, splice, near, defer, carried, key,
+                 method):
     """Phase A: the new fans of every point whose fan contains an accepted point.
 
     Returns (buf, buf_len, buf_open, buf_terms, ok, frames, heir, cost): buf[buf_off[i] +
@@ -947,7 +953,7 @@ def reform_batch(points, normals, colors, dbar, R, rlen, ropen, IN, nin, acc, bu
                         nt, heir[i], cost[i] = _retriangulate(
                             points, normals, R, rlen, ropen, p, max_edge * max_edge,
                             splice == SPLICE_FOLDS, near, hx, hy, halive, htris, carried, js,
-                            costs, key[p])
+                            costs, key[p], method)
                     if nt == -2:
                         ok[i] = 3
                     elif nt < 0:

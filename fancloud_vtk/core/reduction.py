@@ -227,9 +227,10 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     near = RK.Near(active, np.asarray(grid.lo, np.float64), 1.0 / grid.h, grid.start,
                    grid.table)
     IN, nin, over = RK.build_in_lists(R, rlen, IN_WIDTH, numba.get_num_threads())
-    # method 'error': on spliced fans every point's quadric (_quadric_kernels), else the
-    # removed points each remaining point carries (_reduction_kernels)
-    quadrics = method == "error" and splice != RK.SPLICE_OFF
+    # spliced fans: every point's quadric (_quadric_kernels; the hole's star, and method
+    # 'error''s key); method 'error' on re-formed fans: the removed points each remaining
+    # point carries (_reduction_kernels)
+    quadrics = splice != RK.SPLICE_OFF
     m_carry = n if method == "error" and not quadrics else 0
     head = np.full(m_carry, -1, np.int64)
     nxt = np.full(m_carry, -1, np.int64)
@@ -395,7 +396,7 @@ def _rounds(cloud, w, dbar, max_edge, splice, near, method, fans, inl, terms, co
     R, rlen, ropen, active = fans
     IN, nin, over = inl
     dist, curv, cc, colt, key = terms
-    quadrics = carried.quad.shape[0] > 0
+    quadrics = carried.quad.shape[0] > 0 and method == RK.METHOD_ERROR  # quadric keys
     n = len(pts)
     n_chunks = 2 * numba.get_num_threads()
     width = R.shape[1]
@@ -430,7 +431,7 @@ def _rounds(cloud, w, dbar, max_edge, splice, near, method, fans, inl, terms, co
             SK.defer_overlaps(pts, R, rlen, acc, near.lo, near.inv_h, defer)
         buf, buf_len, buf_open, buf_terms, ok, frames, heir, cost = RK.reform_batch(
             pts, nrm, col, dbar, R, rlen, ropen, IN, nin, acc, buf_off, n_chunks,
-            write_logs, cc, w, key_now, max_edge, splice, near, defer, carried, key)
+            write_logs, cc, w, key_now, max_edge, splice, near, defer, carried, key, method)
         batch = RK.Batch(acc, buf_off, buf, buf_len, buf_open, buf_terms, ok, frames, heir,
                          cost)
         changed = RK.commit_batch(cloud, fans, inl, terms, batch, key_now,
