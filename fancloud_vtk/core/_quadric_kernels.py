@@ -165,22 +165,28 @@ def absorb(Q, q, p):
 
 
 @njit(cache=True)
-def with_rings(R, rlen, active, ids, stamp, tag):
-    """The active points of ``ids`` and of their rings, each once, in a fixed order (ids
-    first, then ring points in the order met)."""
-    n_ids = ids.shape[0]
-    out = np.empty(n_ids + int(rlen[ids].sum()) if n_ids > 0 else 0, np.int64)
+def with_rings(R, rlen, active, ids, heirs, stamp, tag):
+    """The active points of ``ids`` and ``heirs`` and of the heirs' rings, each once, in a
+    fixed order (``heirs`` < 0 are skipped): the keys a round of removals changes (the
+    changed fans, and the heirs' rings, whose cost of collapsing into the heir changed)."""
+    m = ids.shape[0]
+    for i in range(heirs.shape[0]):
+        if heirs[i] >= 0:
+            m += 1 + rlen[heirs[i]]
+    out = np.empty(m, np.int64)
     m = 0
-    for i in range(n_ids):
+    for i in range(ids.shape[0]):
         x = ids[i]
         if stamp[x] != tag and active[x]:
             stamp[x] = tag
             out[m] = x
             m += 1
-    for i in range(n_ids):
-        x = ids[i]
-        for a in range(rlen[x]):
-            y = R[x, a]
+    for i in range(heirs.shape[0]):
+        h = heirs[i]
+        if h < 0:
+            continue
+        for a in range(-1, rlen[h]):
+            y = h if a < 0 else R[h, a]
             if stamp[y] != tag and active[y]:
                 stamp[y] = tag
                 out[m] = y

@@ -437,10 +437,13 @@ def _rounds(cloud, w, dbar, max_edge, splice, near, method, fans, inl, terms, co
         changed = RK.commit_batch(cloud, fans, inl, terms, batch, key_now,
                                   n_remove - counters[1], counters, logs.bundle(), stamp,
                                   carried, write_logs)
-        if quadrics:  # the changed fans and the heirs' rings
+        if quadrics:  # the keys of the changed fans and of the heirs' rings
             counters[5] += 1
-            changed = QK.with_rings(R, rlen, active, changed, stamp, counters[5])
-        if not key_now:
+            changed = QK.with_rings(R, rlen, active, changed, heir[ok == 1], stamp,
+                                    counters[5])
+            QK.update_quadric_keys(carried.quad, pts, carried.centre, R, rlen, ropen, key,
+                                   changed)
+        elif not key_now:
             RK.update_keys(pts, nrm, R, rlen, ropen, dist, curv, cc, colt, key, w, method,
                            dbar, changed, carried)
         _report(progress, counters[1] / max(n_remove, 1), "reduction")
