@@ -80,14 +80,20 @@ def _ear(points, nx, ny, nz, xs, ys, poly, alive, m, a, i, b, R, rlen, limit2, l
     if not last:
         if _has(R, rlen, pa, pb) or dist2(points, pa, pb) > limit2:
             return -1.0
-    # 3-d: the triangle's normal against p's, and its smallest angle
-    cx, cy, cz = triangle_cross(points, pa, pi, pb)
+    return _facing_sine(points, pa, pi, pb, nx, ny, nz)
+
+
+@njit(cache=True)
+def _facing_sine(points, a, b, c, nx, ny, nz):
+    """The sine of the triangle a b c's smallest angle, or -1 if it is degenerate (below
+    MIN_SINE) or its normal is more than acos(MIN_NORMAL_DOT) from n."""
+    cx, cy, cz = triangle_cross(points, a, b, c)
     c2 = np.sqrt(cx * cx + cy * cy + cz * cz)
     if c2 == 0.0 or (cx * nx + cy * ny + cz * nz) < MIN_NORMAL_DOT * c2:
         return -1.0
-    la = dist2(points, pa, pi)
-    lb = dist2(points, pa, pb)
-    lc = dist2(points, pi, pb)
+    la = dist2(points, a, b)
+    lb = dist2(points, a, c)
+    lc = dist2(points, b, c)
     # sin of the angle opposite the shortest edge = 2 area / (product of the other two)
     if la <= lb and la <= lc:
         s = c2 / np.sqrt(lb * lc)
@@ -95,9 +101,7 @@ def _ear(points, nx, ny, nz, xs, ys, poly, alive, m, a, i, b, R, rlen, limit2, l
         s = c2 / np.sqrt(la * lc)
     else:
         s = c2 / np.sqrt(la * lb)
-    if s < MIN_SINE:
-        return -1.0
-    return s
+    return s if s >= MIN_SINE else -1.0
 
 
 @njit(cache=True)
@@ -201,23 +205,11 @@ def _star(points, nx, ny, nz, xs, ys, poly, m, j, R, rlen, limit2, p, tris):
         pb = poly[b]
         if i >= 2 and (_has(R, rlen, q, pa) or dist2(points, q, pa) > limit2):
             return -1
+        if _facing_sine(points, q, pa, pb, nx, ny, nz) < 0.0:
+            return -1
         cx, cy, cz = triangle_cross(points, q, pa, pb)
-        c2 = np.sqrt(cx * cx + cy * cy + cz * cz)
-        if c2 == 0.0 or (cx * nx + cy * ny + cz * nz) < MIN_NORMAL_DOT * c2:
-            return -1
         ox, oy, oz = triangle_cross(points, p, pa, pb)
-        if cx * ox + cy * oy + cz * oz <= 0.0:
-            return -1
-        la = dist2(points, q, pa)
-        lb = dist2(points, q, pb)
-        lc = dist2(points, pa, pb)
-        if la <= lb and la <= lc:
-            s = c2 / np.sqrt(lb * lc)
-        elif lb <= lc:
-            s = c2 / np.sqrt(la * lc)
-        else:
-            s = c2 / np.sqrt(la * lb)
-        if s < MIN_SINE:
+        if cx * ox + cy * oy + cz * oz <= 0.0:  # turned over against p's old triangle
             return -1
         tris[nt, 0] = q
         tris[nt, 1] = pa
