@@ -752,24 +752,17 @@ def folds_onto_ring(points, R, rlen, ropen, p, tris, nt):
     local = local[:n]
     normal, longest, _, _, flat = _triangle_frames(points, local, AREA_TOL, INTERSECTION_TOL)
     for u in range(nt + n_old, n):
-        if flat[u]:
-            continue
-        cut = False
-        for t in range(nt):
-            if (not flat[t] and _boxes_meet(points, local, t, u)
-                    and _pair_intersects(points, local, normal, longest, t, u,
-                                         INTERSECTION_TOL)):
-                cut = True
-                break
-        if not cut:
-            continue
-        already = False
-        for t in range(nt, nt + n_old):
-            if (not flat[t] and _boxes_meet(points, local, t, u)
-                    and _pair_intersects(points, local, normal, longest, t, u,
-                                         INTERSECTION_TOL)):
-                already = True
-                break
-        if not already:
+        if (not flat[u] and _meets_any(points, local, normal, longest, flat, 0, nt, u)
+                and not _meets_any(points, local, normal, longest, flat, nt, nt + n_old, u)):
+            return True
+    return False
+
+
+@njit(cache=True)
+def _meets_any(points, local, normal, longest, flat, lo, hi, u):
+    """Whether triangle u of ``local`` intersects one of its triangles lo..hi-1."""
+    for t in range(lo, hi):
+        if (not flat[t] and _boxes_meet(points, local, t, u)
+                and _pair_intersects(points, local, normal, longest, t, u, INTERSECTION_TOL)):
             return True
     return False
