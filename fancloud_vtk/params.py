@@ -212,7 +212,9 @@ MESH_PARAMS: tuple[Param, ...] = (
         "remove_self_intersections", "bool", True,
         "remove the triangles that intersect others (an addition to the paper), close the "
         "holes again and repeat (three rounds), then remove what still intersects: the mesh "
-        "has no self-intersection",
+        "has no self-intersection; with close_holes, the holes still open are then filled in "
+        "space without crossings (a hole whose fill needs an edge longer than 4 local "
+        "spacings stays open) and unused points are put in at the nearest triangle",
     ),
     Param(
         "min_component", "int", 20,

@@ -965,10 +965,11 @@ def uncontested(tri, alive, count, tri_edge, n_edges, min_count):
 
 
 @njit(cache=True)
-def insert_unused(points, normals, offsets, ring, triangles, n):
+def insert_unused(points, normals, offsets, ring, triangles, n, skip):
     """Put each unused point into the triangle it lies over (1 -> 3 split).
 
-    For unused point p (in increasing order), the candidates are the
+    For unused point p (in increasing order, those with ``skip[p]`` left
+    out; ``skip`` may be empty), the candidates are the
     triangles at p's fan neighbours and theirs; the one containing p's
     projection along p's normal best (largest smallest barycentric
     coordinate, ties: the lowest triangle number) is split, if p lies
@@ -981,6 +982,9 @@ def insert_unused(points, normals, offsets, ring, triangles, n):
     for t in range(m):
         for j in range(3):
             used[triangles[t, j]] = True
+    if skip.shape[0]:
+        for p in range(n):
+            used[p] = used[p] or skip[p]
     n_todo = 0
     for p in range(n):
         if not used[p]:

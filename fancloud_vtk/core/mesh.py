@@ -59,6 +59,7 @@ import numpy as np
 from . import _component_kernels as CK
 from . import _csr_kernels as CsrK
 from . import _edge_kernels as EdgeK
+from . import _fill_kernels as FillK
 from . import _mesh_kernels as MK
 from . import _ring_kernels as RingK
 from .model import FanCloud
@@ -66,6 +67,16 @@ from .model import FanCloud
 #: largest Delaunay ring kept (a point keeps its fan's ring past that); on
 #: random samples 99.99% of the rings have at most 12 points
 MAX_RING = 16
+#: The largest boundary loop (in edges) the last hole filling triangulates in space
+#: (its cost grows with the cube of the loop's length).
+MAX_FILL = 160
+#: Rounds of the last hole filling and point insertion.
+#: An unused point goes into a triangle at most this many local spacings from it.
+INSERT_FAR = 1.0
+#: A fill of the last hole filling is kept when its longest edge is at most this many
+#: local spacings (the median over the loop's points).
+FILL_MAX_EDGE = 4.0
+FILL_ROUNDS = 3
 
 
 @dataclass(eq=False)
@@ -160,8 +171,13 @@ def fan_cloud_to_mesh(
         triangles fold over others, Figure 7), close the holes this leaves
         again (``close_holes``), and repeat (three rounds); what still
         intersects then is removed and its hole left open. The result
-        has no self-intersection. Costs one intersection test of the whole
-        mesh when there is none.
+        has no self-intersection. With ``close_holes`` too, the holes
+        still open are then triangulated in space without crossings
+        (the smallest largest dihedral angle, then the least area; a hole
+        whose fill needs an edge longer than ``FILL_MAX_EDGE`` = 4 local
+        spacings stays open) and the points still unused are put in at the
+        nearest triangle or edge (docs/mesh.md, section 6b). Costs one
+        intersection test of the whole mesh when there is none.
     min_component : int, default: 20
         Outliers (an addition to the paper): a piece of the mesh with fewer
         points than this and fewer than a tenth of the largest piece's, none
@@ -343,6 +359,13 @@ def fan_cloud_to_mesh(
             fancloud, triangles, refill
         )
     timings["self_intersections"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    if close_holes and remove_self_intersections:
+        triangles, filled, inserted = _fill_rounds(fancloud, triangles, max_hole_diameter)
+        stats["holes_closed"] += filled
+        stats["points_inserted"] += inserted
+    timings["fill_in_space"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     triangles, outliers = _outliers(fancloud, triangles, min_component)
@@ -699,6 +722,321 @@ def _remove_intersections(fc: FanCloud, triangles, refill, rounds=3):
     return triangles, removed
 
 
+def _meets(points, base, new) -> np.ndarray:
+    """Per row of ``new``: does it intersect a triangle of ``base`` or another row of ``new``
+    (as :func:`~fancloud_vtk.core.mesh_stats.self_intersecting_pairs` tests a pair)?"""
+    from scipy.spatial import cKDTree
+
+    from .mesh_stats import AREA_TOL, INTERSECTION_TOL
+
+    if len(new) == 0:
+        return np.zeros(0, bool)
+    if len(base) > 64 * len(new):  # only the base triangles within reach of the new ones
+        cb = points[base].mean(axis=1)
+        reach = np.linalg.norm(points[base] - cb[:, None], axis=2).max()
+        cn = points[new].mean(axis=1)
+        rn = np.linalg.norm(points[new] - cn[:, None], axis=2).max(axis=1)
+        near = cKDTree(cb).query_ball_point(cn, rn + reach)
+        base = base[np.unique(np.concatenate([np.asarray(x, np.int64) for x in near]))]
+    both = np.ascontiguousarray(np.vstack([base, new]), dtype=np.int64)
+    return FillK.meets(points, both, len(base), INTERSECTION_TOL, AREA_TOL)
+
+
+def _longest(points, triangles) -> float:
+    """The longest edge of some triangles."""
+    p = points[triangles]
+    return float(np.linalg.norm(p - np.roll(p, 1, axis=1), axis=2).max())
+
+
+def _fill_in_space(fc: FanCloud, triangles, max_diameter, state):
+    """The last hole filling: triangulate in space the holes still open, without crossings.
+
+    Runs after the self-intersections are removed. A boundary loop that is a
+    hole (as :func:`_close_holes` judges: not along the real boundary, not a
+    wide gap along open fans) and has at most :data:`MAX_FILL` edges is
+    triangulated over its own vertices by :func:`._fill_kernels.fill_loop`
+    (the smallest largest dihedral angle, then the least area); when that
+    fill crosses a mesh triangle near the loop, again with only triangles
+    that cross none (:func:`._fill_kernels._clear`). A fill is kept when
+    its triangles cross nothing and its longest edge is at most
+    :data:`FILL_MAX_EDGE` local spacings. Pieces of at most four points
+    and triangles none of whose edges is shared (hanging at a vertex: a
+    loop would wrap them twice) are taken out first: their points are
+    then inserted like other unused points. ``state``: :func:`_open_state` of the
+    triangles. Returns (triangles, holes filled, the triangles that stand in the way of
+    a fill).
+    """
+    from scipy.spatial import cKDTree
+
+    from .mesh_stats import AREA_TOL, INTERSECTION_TOL, _triangle_frames
+
+    n = fc.n_points
+    pts = fc.points
+    none = np.zeros(0, np.int64)
+    vt_off, vt, loop_off, loop_verts, _ = state
+    if len(loop_off) < 2:
+        return triangles, 0, none
+    # pieces of at most four points, and triangles hanging at a vertex (their three
+    # half-edges on the boundary)
+    label = CK.vertex_components(np.ascontiguousarray(triangles), n)
+    size = np.bincount(label[label >= 0], minlength=n)
+    drop = size[label[triangles[:, 0]]] <= 4
+    sizes = np.diff(loop_off)
+    nxt = np.roll(loop_verts, -1)
+    nxt[loop_off[1:] - 1] = loop_verts[loop_off[:-1]]
+    half = loop_verts * n + nxt
+    on_loop = np.zeros(n, bool)
+    on_loop[loop_verts] = True
+    cand = np.flatnonzero(on_loop[triangles].all(axis=1))
+    keys = triangles[cand] * n + np.roll(triangles[cand], -1, axis=1)
+    drop[cand[np.isin(keys, half).all(axis=1)]] = True
+    if drop.any():
+        triangles = triangles[~drop]
+        if len(triangles) == 0:
+            return triangles, 0, none
+        vt_off, vt, loop_off, loop_verts, _ = _open_state(fc, triangles)
+        sizes = np.diff(loop_off)
+        if len(sizes) == 0:
+            return triangles, 0, none
+    starts = loop_off[:-1]
+    n_open = np.add.reduceat(fc.open[loop_verts].astype(np.int64), starts)
+    small = _loop_small(fc, loop_off, loop_verts, max_diameter) | (4 * n_open < sizes)
+    cen = pts[triangles].mean(axis=1)
+    reach = np.linalg.norm(pts[triangles] - cen[:, None], axis=2).max()
+    tree = cKDTree(cen)
+    added = []
+    blockers = []
+    unchecked = (np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)),
+                 np.zeros((0, 3)), np.zeros(0, bool), 0.0, 0.0)
+    for i in np.flatnonzero(sizes <= MAX_FILL):
+        loop = np.ascontiguousarray(loop_verts[starts[i] : loop_off[i + 1]])
+        if n_open[i] and (not small[i] or _on_real_boundary(fc, loop)):
+            continue
+        p = pts[loop]
+        c = p.mean(axis=0)
+        near = tree.query_ball_point(c, np.linalg.norm(p - c, axis=1).max() + reach)
+        local = np.vstack([triangles[near], *added, np.zeros((1, 3), np.int64)])
+        local = np.ascontiguousarray(local, dtype=np.int64)
+        h_loop = float(np.median(_ring_spacing(fc, loop)))
+        free = FillK.fill_loop(pts, loop, triangles, vt_off, vt, np.pi,
+                               *unchecked)
+        if len(free) and _longest(pts, free) > FILL_MAX_EDGE * h_loop:
+            continue  # a fill this coarse would bridge: the hole stays
+        if len(free) and not _meets(pts, local[:-1], free).any():
+            added.append(free)  # the best fill crosses nothing
+            continue
+        frames = _triangle_frames(pts, local, AREA_TOL, INTERSECTION_TOL)
+        tris = FillK.fill_loop(pts, loop, triangles, vt_off, vt, np.pi,
+                               local, *frames, INTERSECTION_TOL, AREA_TOL)
+        if len(tris) and _longest(pts, tris) <= FILL_MAX_EDGE * h_loop \
+                and not _meets(pts, local[:-1], tris).any():
+            added.append(tris)
+            continue
+        # what stands in the way: the mesh triangles that the best fill would cross
+        if len(free):
+            hit = _meets(pts, free, triangles[near])
+            if 0 < hit.sum() <= len(loop):
+                blockers.append(np.asarray(near, np.int64)[hit])
+    if added:
+        triangles = np.vstack([triangles, *added])
+    blocked = np.unique(np.concatenate(blockers)) if blockers else np.zeros(0, np.int64)
+    return triangles, len(added), blocked
+
+
+def _open_state(fc: FanCloud, triangles):
+    """(vt_off, vt, loop_off, loop_verts, unused points of closed fans) of a mesh."""
+    n = fc.n_points
+    vt_off, vt = CsrK.vertex_triangles(triangles, n)
+    loop_off, loop_verts = MK.boundary_loops_manifold(triangles, vt_off, vt, n)
+    used = np.zeros(n, bool)
+    used[triangles.ravel()] = True
+    return vt_off, vt, loop_off, loop_verts, int(np.count_nonzero(~used & ~fc.open))
+
+
+def _fill_rounds(fc: FanCloud, triangles, max_diameter):
+    """Rounds of :func:`_fill_in_space` and point insertion; between rounds, the triangles
+    that stand in the way of a hole's fill are taken out (the hole widened), and the
+    round that leaves the fewest boundary edges plus unused points of closed fans is the
+    result. Returns (triangles, holes filled, points inserted)."""
+    state = _open_state(fc, triangles)
+    score = len(state[3]) + state[4]
+    if score == 0 or len(triangles) == 0:
+        return triangles, 0, 0
+    best = (score, triangles, 0, 0)
+    filled_all = inserted_all = 0
+    for r in range(FILL_ROUNDS):
+        triangles, filled, blocked = _fill_in_space(fc, triangles, max_diameter, state)
+        triangles, inserted = _insert_unused_checked(fc, triangles)
+        triangles, nearest = _insert_nearest(fc, triangles)
+        filled_all += filled
+        inserted_all += inserted + nearest
+        state = _open_state(fc, triangles)
+        score = len(state[3]) + state[4]
+        if score < best[0]:
+            best = (score, triangles, filled_all, inserted_all)
+        if (r == FILL_ROUNDS - 1 or score == 0
+                or (filled + inserted + nearest == 0 and len(blocked) == 0)):
+            break
+        if len(blocked):
+            keep = np.ones(len(triangles), bool)
+            keep[blocked] = False
+            triangles = triangles[keep]
+            keep = np.ones(len(triangles), bool)
+            MK.split_pinched(triangles, keep, fc.n_points)
+            triangles = triangles[keep]
+            state = _open_state(fc, triangles)
+    return best[1], best[2], best[3]
+
+
+def _insert_unused_checked(fc: FanCloud, triangles):
+    """:func:`_insert_unused`, undoing each insertion whose three triangles would cross
+    the mesh; repeated while points go in. Returns (triangles, points inserted)."""
+    n = fc.n_points
+    skip = np.zeros(n, bool)
+    inserted = 0
+    while True:
+        out, count = MK.insert_unused(
+            fc.points, fc.normals, fc.offsets, fc.ring, triangles, n, skip
+        )
+        if count == 0:
+            return triangles, inserted
+        kept = out[: len(out) - 3 * count]
+        new = out[len(out) - 3 * count :]
+        bad = _meets(fc.points, kept, new).reshape(-1, 3).any(axis=1)
+        # and the point far from the triangle it splits (a spike): farther than
+        # INSERT_FAR local spacings from its plane
+        split = new.reshape(-1, 3, 3)
+        p = split[:, 0, 2]
+        a, b, c = (fc.points[split[:, k, 0]] for k in range(3))
+        nrm = np.cross(b - a, c - a)
+        nrm /= np.maximum(np.linalg.norm(nrm, axis=1), 1e-300)[:, None]
+        off = np.abs(np.einsum("ij,ij->i", fc.points[p] - a, nrm))
+        bad |= off > INSERT_FAR * _ring_spacing(fc, p)
+        if bad.any():
+            # undo: the split triangle (a, b, c) from its three (a, b, p), (b, c, p), (c, a, p)
+            undo = new.reshape(-1, 3, 3)[bad]
+            skip[undo[:, 0, 2]] = True
+            restored = undo[:, :, 0]
+            new = new.reshape(-1, 3, 3)[~bad].reshape(-1, 3)
+            kept = np.vstack([kept, restored])
+        triangles = np.vstack([kept, new])
+        inserted += int((~bad).sum())
+
+
+def _segment_distance(x, a, b) -> float:
+    """Distance from point x to the segment ab."""
+    ab = b - a
+    t = np.clip((x - a) @ ab / max(ab @ ab, 1e-300), 0.0, 1.0)
+    return float(np.linalg.norm(a + t * ab - x))
+
+
+def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8):
+    """Put each point still unused (closed fan) into the mesh near it.
+
+    For unused point p, the ``tries`` triangles nearest to p (within two
+    local spacings) are tried in order of distance: a triangle whose closest
+    point to p lies inside it (barycentric coordinates at least ``edge``) is
+    split in three at p; otherwise its edges, nearest to p first, are split
+    at p with the triangles on them. A split is made when p is at most
+    ``far`` times the triangle's longest edge from it, every new triangle
+    faces the way the one it replaces did, and the new triangles cross
+    nothing (:func:`_meets`). One point at a time, in increasing order.
+    Returns (triangles, points inserted).
+    """
+    from scipy.spatial import cKDTree
+
+    far = INSERT_FAR if far is None else far
+    n = fc.n_points
+    pts = fc.points
+    used = np.zeros(n, bool)
+    used[triangles.ravel()] = True
+    todo = np.flatnonzero(~used & ~fc.open)
+    if len(todo) == 0 or len(triangles) == 0:
+        return triangles, 0
+    spacing = _ring_spacing(fc, todo)
+    m = len(triangles)
+    tris = np.empty((m + 4 * len(todo), 3), np.int64)  # the mesh, then the triangles made
+    tris[:m] = triangles
+    alive = np.zeros(len(tris), bool)
+    alive[:m] = True
+    top = m
+    cen = pts[triangles].mean(axis=1)
+    tree = cKDTree(cen)
+    reach = np.linalg.norm(pts[triangles] - cen[:, None], axis=2).max()
+    inserted = 0
+
+    def facing(rows, o):
+        """Do the triangles rows face the way triangle o does?"""
+        a, b, c = pts[tris[o]]
+        q = pts[rows]
+        nrm = np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0])
+        return bool((nrm @ np.cross(b - a, c - a) > 0).all())
+
+    def options(p, t, bary, around):
+        a, b, c = tris[t].tolist()
+        if (bary >= edge).all():
+            yield [t], [[(a, b, p), (b, c, p), (c, a, p)]]
+            return
+        x = pts[p]
+        corners = tris[t].tolist()
+        sides = sorted(range(3), key=lambda k: _segment_distance(
+            x, pts[corners[(k + 1) % 3]], pts[corners[(k + 2) % 3]]))
+        for k in sides:
+            u, v, w = corners[(k + 1) % 3], corners[(k + 2) % 3], corners[k]
+            old = [t]
+            new = [[(w, u, p), (v, w, p)]]
+            # the triangle on the other side: it runs v -> u
+            r = tris[around]
+            runs = ((r == v) & (np.roll(r, -1, axis=1) == u)).any(axis=1) & (around != t)
+            if runs.any():
+                s = int(around[np.flatnonzero(runs)[0]])
+                z = int(tris[s][(tris[s] != u) & (tris[s] != v)][0])
+                old.append(s)
+                new.append([(u, z, p), (z, v, p)])
+            yield old, new
+
+    for p, h in zip(todo.tolist(), spacing.tolist(), strict=True):
+        x = pts[p]
+        made = np.arange(m, top)
+        _, idx = tree.query(x, k=min(16, m), distance_upper_bound=2.0 * h + reach)
+        idx = np.atleast_1d(idx)
+        cand = np.concatenate([idx[idx < m], made])
+        cand = cand[alive[cand]]
+        if len(cand) == 0:
+            continue
+        corners = pts[tris[cand]]
+        bary = FillK.closest_on_triangles(x, corners)
+        d = np.linalg.norm(np.einsum("kj,kjd->kd", bary, corners) - x, axis=1)
+        ok = np.flatnonzero(d <= far * h)
+        if len(ok) == 0:
+            continue
+        ok = ok[np.lexsort((cand[ok], d[ok]))][:tries]
+        # what the new triangles could cross: the triangles within reach of them
+        around = np.concatenate([tree.query_ball_point(x, 2.0 * h + 3.0 * reach), made])
+        around = around.astype(np.int64)[alive[around.astype(np.int64)]]
+        done = False
+        for i in ok.tolist():
+            t = int(cand[i])
+            for old, groups in options(p, t, bary[i], around):
+                if not all(facing(np.asarray(g, np.int64), o)
+                           for o, g in zip(old, groups, strict=True)):
+                    continue
+                new = np.asarray([g for grp in groups for g in grp], np.int64)
+                base = tris[around[~np.isin(around, old)]]
+                if _meets(pts, base, new).any():
+                    continue
+                alive[old] = False
+                tris[top : top + len(new)] = new
+                alive[top : top + len(new)] = True
+                top += len(new)
+                inserted += 1
+                done = True
+                break
+            if done:
+                break
+    return tris[:top][alive[:top]], inserted
+
+
 def _area(points, triangles) -> float:
     """The area of a triangle mesh."""
     return float(CK.mesh_area(points, np.ascontiguousarray(triangles, dtype=np.int64)))
@@ -731,7 +1069,7 @@ def _insert_unused(fc: FanCloud, triangles):
     (triangles, points inserted).
     """
     out, inserted = MK.insert_unused(
-        fc.points, fc.normals, fc.offsets, fc.ring, triangles, fc.n_points
+        fc.points, fc.normals, fc.offsets, fc.ring, triangles, fc.n_points, np.zeros(0, bool)
     )
     return out, int(inserted)
 

@@ -1,0 +1,333 @@
+"""Numba kernels of the last hole filling of the mesh (:mod:`fancloud_vtk.core.mesh`).
+
+A boundary loop that the tangent-plane fillers (stars, Delaunay fills, ears)
+could not close is triangulated in space by dynamic programming over its
+sub-polygons, as Liepa does for mesh holes (P. Liepa, *Filling holes in
+meshes*, SGP 2003): of all the triangulations that use only the loop's
+vertices, the one whose largest dihedral angle (between neighbouring new
+triangles, and between a new triangle and the mesh triangle on a loop edge)
+is the smallest, then the one of least area. A diagonal that is already an
+edge of the mesh is not used (it would be a third triangle on that edge).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ._edge_kernels import has_edge
+from .mesh_stats import _longest_edge_normal, _pair_intersects, _triangle_frames
+
+
+@njit(cache=True)
+def _normal(points, a, b, c):
+    ux = points[b, 0] - points[a, 0]
+    uy = points[b, 1] - points[a, 1]
+    uz = points[b, 2] - points[a, 2]
+    vx = points[c, 0] - points[a, 0]
+    vy = points[c, 1] - points[a, 1]
+    vz = points[c, 2] - points[a, 2]
+    nx = uy * vz - uz * vy
+    ny = uz * vx - ux * vz
+    nz = ux * vy - uy * vx
+    return nx, ny, nz
+
+
+@njit(cache=True)
+def _angle(n1, n2):
+    """The angle between two (unnormalised) normals, in [0, pi]; pi for a degenerate one."""
+    l1 = np.sqrt(n1[0] * n1[0] + n1[1] * n1[1] + n1[2] * n1[2])
+    l2 = np.sqrt(n2[0] * n2[0] + n2[1] * n2[1] + n2[2] * n2[2])
+    if l1 == 0.0 or l2 == 0.0:
+        return np.pi
+    c = (n1[0] * n2[0] + n1[1] * n2[1] + n1[2] * n2[2]) / (l1 * l2)
+    return np.arccos(min(1.0, max(-1.0, c)))
+
+
+@njit(cache=True)
+def _third(triangles, vt_off, vt, a, b):
+    """(third vertex, +1 if the triangle runs a -> b, -1 if b -> a) of a triangle on edge a-b;
+    (-1, 0) if there is none."""
+    for i in range(vt_off[a], vt_off[a + 1]):
+        t = vt[i]
+        for k in range(3):
+            if triangles[t, k] == a:
+                nb = triangles[t, (k + 1) % 3]
+                pb = triangles[t, (k + 2) % 3]
+                if nb == b:
+                    return pb, 1
+                if pb == b:
+                    return nb, -1
+    return -1, 0
+
+
+@njit(cache=True)
+def _clear(points, a, b, c, tri, normal, longest, lo, hi, flat, tol, area_tol):
+    """Does triangle (a, b, c) have an area and meet none of ``tri`` but its last row?
+
+    ``tri``: the mesh triangles near a loop and a last free row; ``normal``,
+    ``longest``, ``lo``, ``hi``, ``flat``: their frames from
+    :func:`fancloud_vtk.core.mesh_stats._triangle_frames` (the last row's
+    are overwritten). A pair is tested as
+    :func:`~fancloud_vtk.core.mesh_stats.self_intersecting_pairs` tests it:
+    sharing a vertex or an edge without overlapping is allowed.
+    """
+    slot = tri.shape[0] - 1
+    tri[slot, 0] = a
+    tri[slot, 1] = b
+    tri[slot, 2] = c
+    best, nx, ny, nz, nn = _longest_edge_normal(points, tri, slot)
+    if nn <= area_tol * best or nn == 0.0:
+        return False
+    length = np.sqrt(best)
+    normal[slot, 0] = nx / nn
+    normal[slot, 1] = ny / nn
+    normal[slot, 2] = nz / nn
+    longest[slot] = length
+    pad = 2.0 * tol * length
+    for d in range(3):
+        x0 = points[a, d]
+        x1 = points[b, d]
+        x2 = points[c, d]
+        lo[slot, d] = min(x0, x1, x2) - pad
+        hi[slot, d] = max(x0, x1, x2) + pad
+    for t in range(slot):
+        if flat[t]:
+            continue
+        if (
+            lo[t, 0] > hi[slot, 0]
+            or lo[slot, 0] > hi[t, 0]
+            or lo[t, 1] > hi[slot, 1]
+            or lo[slot, 1] > hi[t, 1]
+            or lo[t, 2] > hi[slot, 2]
+            or lo[slot, 2] > hi[t, 2]
+        ):
+            continue
+        if _pair_intersects(points, tri, normal, longest, slot, t, tol):
+            return False
+    return True
+
+
+@njit(cache=True)
+def fill_loop(points, loop, triangles, vt_off, vt, max_angle, near, normal, longest, lo, hi,
+              flat, tol, area_tol):
+    """Triangulate one boundary loop of a mesh (see the module docstring).
+
+    ``loop``: the loop's vertices in order (``m >= 3``). Returns ``(m - 2, 3)``
+    triangles oriented like the mesh around them (each loop edge is run
+    against the mesh triangle on it), or an empty array when no
+    triangulation exists without a mesh edge as a diagonal, with a repeated
+    vertex in a triangle, or with every dihedral angle at most
+    ``max_angle`` (radians). With ``near`` not empty (the mesh triangles
+    near the loop and a free last row, with their frames ``normal`` ...
+    ``flat``, see :func:`_clear`), only triangles that cross none of them
+    are used.
+    """
+    m = loop.shape[0]
+    empty = np.empty((0, 3), np.int64)
+    if m < 3:
+        return empty
+    # the orientation: a loop edge runs with its mesh triangle, so new triangles run against
+    sign = 0
+    third = np.full(m, -1, np.int64)  # the mesh triangle's third vertex on loop edge (j, j+1)
+    for j in range(m):
+        a = loop[j]
+        b = loop[(j + 1) % m]
+        c, d = _third(triangles, vt_off, vt, a, b)
+        third[j] = c
+        if sign == 0 and d != 0:
+            sign = -d
+    if sign == 0:
+        sign = 1
+    big = np.inf
+    ang = np.full((m, m), big)
+    area = np.full((m, m), big)
+    apex = np.full((m, m), -1, np.int64)
+    for i in range(m - 1):
+        ang[i, i + 1] = 0.0
+        area[i, i + 1] = 0.0
+    for span in range(2, m):
+        for i in range(0, m - span):
+            j = i + span
+            vi = loop[i]
+            vj = loop[j]
+            if vi == vj:
+                continue
+            # the diagonal i-j (the closing edge 0-(m-1) is a loop edge)
+            if not (i == 0 and j == m - 1) and has_edge(triangles, vt_off, vt, vi, vj):
+                continue
+            best_a = big
+            best_s = big
+            best_k = -1
+            for k in range(i + 1, j):
+                if ang[i, k] == big or ang[k, j] == big:
+                    continue
+                vk = loop[k]
+                if vk == vi or vk == vj:
+                    continue
+                nx, ny, nz = _normal(points, vi, vk, vj)
+                n = (sign * nx, sign * ny, sign * nz)
+                s = 0.5 * np.sqrt(nx * nx + ny * ny + nz * nz)
+                if s == 0.0:
+                    continue
+                worst = max(ang[i, k], ang[k, j])
+                # across i-k: the sub-polygon's triangle, or the mesh triangle on a loop edge
+                for side in range(2):
+                    e0 = i if side == 0 else k
+                    e1 = k if side == 0 else j
+                    if e1 == e0 + 1:
+                        t = third[e0]
+                        if t < 0:
+                            continue
+                        # the mesh triangle's normal, as it runs (d: +1 e0 -> e1, -1 e1 -> e0)
+                        mx, my, mz = _normal(points, loop[e0], loop[e1], t)
+                        _, d = _third(triangles, vt_off, vt, loop[e0], loop[e1])
+                        mn = (d * mx, d * my, d * mz)
+                    else:
+                        q = apex[e0, e1]
+                        mx, my, mz = _normal(points, loop[e0], loop[q], loop[e1])
+                        mn = (sign * mx, sign * my, sign * mz)
+                    worst = max(worst, _angle(n, mn))
+                if span == m - 1:  # the closing loop edge (m-1, 0)
+                    t = third[m - 1]
+                    if t >= 0:
+                        mx, my, mz = _normal(points, loop[m - 1], loop[0], t)
+                        _, d = _third(triangles, vt_off, vt, loop[m - 1], loop[0])
+                        mn = (d * mx, d * my, d * mz)
+                        worst = max(worst, _angle(n, mn))
+                if worst > max_angle:
+                    continue
+                total = area[i, k] + area[k, j] + s
+                if not ((worst < best_a - 1e-2) or (worst <= best_a + 1e-2 and total < best_s)):
+                    continue
+                if near.shape[0] and not _clear(
+                    points, vi, vk, vj, near, normal, longest, lo, hi, flat, tol, area_tol
+                ):
+                    continue
+                # the smallest largest angle (to a hundredth of a radian), then the least area
+                if (worst < best_a - 1e-2) or (worst <= best_a + 1e-2 and total < best_s):
+                    best_a = worst
+                    best_s = total
+                    best_k = k
+            if best_k >= 0:
+                ang[i, j] = best_a
+                area[i, j] = best_s
+                apex[i, j] = best_k
+    if apex[0, m - 1] < 0:
+        return empty
+    out = np.empty((m - 2, 3), np.int64)
+    stack = np.empty((m, 2), np.int64)
+    top = 0
+    stack[0, 0] = 0
+    stack[0, 1] = m - 1
+    top = 1
+    row = 0
+    while top > 0:
+        top -= 1
+        i = stack[top, 0]
+        j = stack[top, 1]
+        if j - i < 2:
+            continue
+        k = apex[i, j]
+        if sign > 0:
+            out[row, 0] = loop[i]
+            out[row, 1] = loop[k]
+            out[row, 2] = loop[j]
+        else:
+            out[row, 0] = loop[j]
+            out[row, 1] = loop[k]
+            out[row, 2] = loop[i]
+        row += 1
+        stack[top, 0] = i
+        stack[top, 1] = k
+        top += 1
+        stack[top, 0] = k
+        stack[top, 1] = j
+        top += 1
+    return out
+
+
+@njit(cache=True)
+def closest_on_triangles(x, corners):
+    """Barycentric coordinates ``(k, 3)`` of the points of triangles ``corners`` ``(k, 3, 3)``
+    closest to the point ``x`` (Ericson, *Real-Time Collision Detection*, 5.1.5)."""
+    k = corners.shape[0]
+    out = np.zeros((k, 3))
+    for t in range(k):
+        a = corners[t, 0]
+        b = corners[t, 1]
+        c = corners[t, 2]
+        ab = b - a
+        ac = c - a
+        ap = x - a
+        d1 = ab @ ap
+        d2 = ac @ ap
+        if d1 <= 0.0 and d2 <= 0.0:
+            out[t, 0] = 1.0
+            continue
+        bp = x - b
+        d3 = ab @ bp
+        d4 = ac @ bp
+        if d3 >= 0.0 and d4 <= d3:
+            out[t, 1] = 1.0
+            continue
+        vc = d1 * d4 - d3 * d2
+        if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+            v = d1 / (d1 - d3)
+            out[t, 0] = 1.0 - v
+            out[t, 1] = v
+            continue
+        cp = x - c
+        d5 = ab @ cp
+        d6 = ac @ cp
+        if d6 >= 0.0 and d5 <= d6:
+            out[t, 2] = 1.0
+            continue
+        vb = d5 * d2 - d1 * d6
+        if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+            w = d2 / (d2 - d6)
+            out[t, 0] = 1.0 - w
+            out[t, 2] = w
+            continue
+        va = d3 * d6 - d5 * d4
+        if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+            w = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+            out[t, 1] = 1.0 - w
+            out[t, 2] = w
+            continue
+        denom = 1.0 / (va + vb + vc)
+        v = vb * denom
+        w = vc * denom
+        out[t, 0] = 1.0 - v - w
+        out[t, 1] = v
+        out[t, 2] = w
+    return out
+
+
+@njit(cache=True)
+def meets(points, tri, n_base, tol, area_tol):
+    """Per row ``r >= n_base`` of ``tri``: does it intersect another row (as
+    :func:`~fancloud_vtk.core.mesh_stats.self_intersecting_pairs` tests a pair;
+    rows below ``n_base`` are not tested against each other)?"""
+    normal, longest, lo, hi, flat = _triangle_frames(points, tri, area_tol, tol)
+    m = tri.shape[0]
+    hit = np.zeros(m - n_base, np.bool_)
+    for r in range(n_base, m):
+        if flat[r]:
+            continue
+        for t in range(m):
+            if t == r or flat[t]:
+                continue
+            if (
+                lo[t, 0] > hi[r, 0]
+                or lo[r, 0] > hi[t, 0]
+                or lo[t, 1] > hi[r, 1]
+                or lo[r, 1] > hi[t, 1]
+                or lo[t, 2] > hi[r, 2]
+                or lo[r, 2] > hi[t, 2]
+            ):
+                continue
+            if _pair_intersects(points, tri, normal, longest, r, t, tol):
+                hit[r - n_base] = True
+                break
+    return hit
