@@ -219,8 +219,9 @@ MESH_PARAMS: tuple[Param, ...] = (
     Param(
         "min_component", "int", 20,
         "outliers (an addition to the paper): a piece of the mesh with fewer points and "
-        "fewer than a tenth of the largest piece's, with no other point within 5 local "
-        "spacings (a stray cluster), is removed; its points and the stray "
+        "fewer than a tenth of the largest piece's, in a cluster of such pieces with fewer "
+        "points in all and no larger piece within 5 local spacings (a stray cluster), is "
+        "removed; its points and the stray "
         "points in no triangle and no fan of the mesh count as outliers (field array "
         "mesh_outliers); 0: keep every piece",
         range=(0, 2**62),

@@ -70,13 +70,15 @@ MAX_RING = 16
 #: The largest boundary loop (in edges) the last hole filling triangulates in space
 #: (its cost grows with the cube of the loop's length).
 MAX_FILL = 160
-#: Rounds of the last hole filling and point insertion.
+#: Rounds of the last hole filling and point insertion (at most) ...
 #: An unused point goes into a triangle at most this many local spacings from it.
 INSERT_FAR = 1.0
 #: A fill of the last hole filling is kept when its longest edge is at most this many
 #: local spacings (the median over the loop's points).
 FILL_MAX_EDGE = 4.0
-FILL_ROUNDS = 3
+FILL_ROUNDS = 12
+#: ... and they stop after this many rounds that do not improve on the best one.
+FILL_PATIENCE = 3
 
 
 @dataclass(eq=False)
@@ -180,9 +182,10 @@ def fan_cloud_to_mesh(
         intersection test of the whole mesh when there is none.
     min_component : int, default: 20
         Outliers (an addition to the paper): a piece of the mesh with fewer
-        points than this and fewer than a tenth of the largest piece's, none
-        of whose points has another point within 5 local spacings (a stray
-        cluster), is removed; its points, and the points left in no
+        points than this and fewer than a tenth of the largest piece's, in a
+        cluster of such pieces (within 5 local spacings of each other) with
+        fewer points than this in all and no point within 5 local spacings
+        of a larger piece (a stray cluster), is removed; its points, and the points left in no
         triangle that no fan of a point of the mesh holds (stray points),
         are judged outliers: ``stats["outliers"]`` counts them (the field array
         ``mesh_outliers`` of the VTK output) and
@@ -617,10 +620,11 @@ def _outliers(fc: FanCloud, triangles, min_component, far=5.0):
     """(triangles without the stray pieces, the outlier points), see ``min_component``.
 
     A piece is stray when it is small (fewer than ``min_component`` points and
-    a tenth of the largest piece's) and none of its points has a point of
-    another piece within ``far`` times its local spacing (the median
-    fan-ring distance): a cluster off the surface, not a bit of the surface
-    that the growing left apart.
+    a tenth of the largest piece's), and so is the cluster of small pieces it
+    belongs to (small pieces with points within ``far`` times their local
+    spacing of each other, the median fan-ring distance), and no point of the
+    cluster has a point of a piece that is not small that near: a cluster off
+    the surface, not a bit of the surface that the growing left apart.
     """
     n = fc.n_points
     drop = np.zeros(len(triangles), bool)
@@ -637,12 +641,29 @@ def _outliers(fc: FanCloud, triangles, min_component, far=5.0):
             d, j = cKDTree(fc.points).query(fc.points[cand], k=kq)
             d = d.reshape(len(cand), -1)
             j = j.reshape(len(cand), -1)
-            other = (label[j] >= 0) & (label[j] != label[cand][:, None])  # another piece
-            near = np.where(other, d, np.inf).min(axis=1)
             lim = far * _ring_spacing(fc, cand)
-            close = np.zeros(n, bool)  # per piece label: some point has a neighbour near
-            close[label[cand][near <= lim]] = True
-            stray = small & ~close
+            lj = np.maximum(label[j], 0)
+            other = (label[j] >= 0) & (lj != label[cand][:, None]) & (d <= lim[:, None])
+            # small pieces near each other are one cluster (the growing or the filling may
+            # have cut a cluster, or a bit of surface, in pieces): a union of their labels
+            group = np.arange(n)
+
+            def root(x):
+                while group[x] != x:
+                    group[x] = group[group[x]]
+                    x = group[x]
+                return x
+
+            rows, cols = np.nonzero(other & small[lj])
+            for a, b in zip(label[cand][rows].tolist(), lj[rows, cols].tolist(), strict=True):
+                ra, rb = root(a), root(b)
+                if ra != rb:
+                    group[ra] = rb
+            top = np.array([root(x) for x in range(n)]) if len(rows) else group
+            total = np.bincount(top, weights=size, minlength=n)
+            close = np.zeros(n, bool)  # per group: a point near a piece that is not small
+            close[top[label[cand][(other & ~small[lj]).any(axis=1)]]] = True
+            stray = small & ~close[top] & (total[top] < min_component)
             drop = stray[label[triangles[:, 0]]]
     in_small = np.zeros(n, bool)
     in_small[triangles[drop].ravel()] = True
@@ -857,24 +878,35 @@ def _fill_rounds(fc: FanCloud, triangles, max_diameter):
     """Rounds of :func:`_fill_in_space` and point insertion; between rounds, the triangles
     that stand in the way of a hole's fill are taken out (the hole widened), and the
     round that leaves the fewest boundary edges plus unused points of closed fans is the
-    result. Returns (triangles, holes filled, points inserted)."""
+    result. At most :data:`FILL_ROUNDS` rounds; they stop when a round changes nothing,
+    or after :data:`FILL_PATIENCE` rounds without a better one. Returns (triangles,
+    holes filled, points inserted)."""
     state = _open_state(fc, triangles)
     score = len(state[3]) + state[4]
     if score == 0 or len(triangles) == 0:
         return triangles, 0, 0
     best = (score, triangles, 0, 0)
-    filled_all = inserted_all = 0
+    filled_all = inserted_all = stale = 0
+    tried = np.zeros(fc.n_points, bool)  # an insertion at the nearest triangle failed
+    before = triangles
     for r in range(FILL_ROUNDS):
         triangles, filled, blocked = _fill_in_space(fc, triangles, max_diameter, state)
         triangles, inserted = _insert_unused_checked(fc, triangles)
-        triangles, nearest = _insert_nearest(fc, triangles)
+        # a point that failed is tried again only where the mesh around it changed
+        tried &= ~_near_changes(fc, before, triangles, tried)
+        triangles, nearest, failed = _insert_nearest(fc, triangles, skip=tried)
+        tried |= failed
+        before = triangles
         filled_all += filled
         inserted_all += inserted + nearest
         state = _open_state(fc, triangles)
         score = len(state[3]) + state[4]
         if score < best[0]:
             best = (score, triangles, filled_all, inserted_all)
-        if (r == FILL_ROUNDS - 1 or score == 0
+            stale = 0
+        else:
+            stale += 1
+        if (r == FILL_ROUNDS - 1 or score == 0 or stale == FILL_PATIENCE
                 or (filled + inserted + nearest == 0 and len(blocked) == 0)):
             break
         if len(blocked):
@@ -886,6 +918,31 @@ def _fill_rounds(fc: FanCloud, triangles, max_diameter):
             triangles = triangles[keep]
             state = _open_state(fc, triangles)
     return best[1], best[2], best[3]
+
+
+def _near_changes(fc: FanCloud, old, new, points) -> np.ndarray:
+    """Which of the ``points`` (mask) have a triangle made or removed between the meshes
+    ``old`` and ``new`` within three local spacings and three times the largest
+    triangle's reach (what an insertion there could cross)."""
+    from scipy.spatial import cKDTree
+
+    near = np.zeros(fc.n_points, bool)
+    which = np.flatnonzero(points)
+    if len(which) == 0:
+        return near
+    a = np.sort(old, axis=1)
+    b = np.sort(new, axis=1)
+    rows = np.vstack([a, b])
+    _, inv, cnt = np.unique(rows, axis=0, return_inverse=True, return_counts=True)
+    changed = rows[cnt[inv.ravel()] == 1]  # in one mesh only
+    if len(changed) == 0:
+        return near
+    c = fc.points[changed].mean(axis=1)
+    reach = np.linalg.norm(fc.points[changed] - c[:, None], axis=2).max()
+    h = _ring_spacing(fc, which)
+    hit = cKDTree(c).query_ball_point(fc.points[which], 3.0 * h + 3.0 * reach)
+    near[which[np.array([len(x) > 0 for x in hit], bool)]] = True
+    return near
 
 
 def _insert_unused_checked(fc: FanCloud, triangles):
@@ -911,7 +968,15 @@ def _insert_unused_checked(fc: FanCloud, triangles):
         nrm = np.cross(b - a, c - a)
         nrm /= np.maximum(np.linalg.norm(nrm, axis=1), 1e-300)[:, None]
         off = np.abs(np.einsum("ij,ij->i", fc.points[p] - a, nrm))
-        bad |= off > INSERT_FAR * _ring_spacing(fc, p)
+        # the local spacing: p's, or the split triangle's (the median of its corners') when
+        # smaller (a stray point has a wide ring)
+        corners = _ring_spacing(fc, split[:, :, 0].ravel()).reshape(-1, 3)
+        h = np.minimum(_ring_spacing(fc, p), np.median(corners, axis=1))
+        bad |= off > INSERT_FAR * h
+        # and a coarse result: a new triangle with an edge over FILL_MAX_EDGE local spacings
+        q = fc.points[new].reshape(-1, 3, 3, 3)
+        longest = np.linalg.norm(q - np.roll(q, 1, axis=2), axis=3).max(axis=(1, 2))
+        bad |= longest > FILL_MAX_EDGE * h
         if bad.any():
             # undo: the split triangle (a, b, c) from its three (a, b, p), (b, c, p), (c, a, p)
             undo = new.reshape(-1, 3, 3)[bad]
@@ -930,18 +995,21 @@ def _segment_distance(x, a, b) -> float:
     return float(np.linalg.norm(a + t * ab - x))
 
 
-def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8):
-    """Put each point still unused (closed fan) into the mesh near it.
+def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8, skip=None):
+    """Put each point still unused into the mesh near it.
 
     For unused point p, the ``tries`` triangles nearest to p (within two
     local spacings) are tried in order of distance: a triangle whose closest
     point to p lies inside it (barycentric coordinates at least ``edge``) is
     split in three at p; otherwise its edges, nearest to p first, are split
     at p with the triangles on them. A split is made when p is at most
-    ``far`` times the triangle's longest edge from it, every new triangle
+    ``far`` local spacings from it (p's median distance to its fan neighbours,
+    or the triangle's, the median of its corners', when smaller), the
+    triangle's longest edge is at most :data:`FILL_MAX_EDGE` of them, every new triangle
     faces the way the one it replaces did, and the new triangles cross
-    nothing (:func:`_meets`). One point at a time, in increasing order.
-    Returns (triangles, points inserted).
+    nothing (:func:`_meets`). One point at a time, in increasing order; the
+    points ``skip`` (mask) are not tried. Returns (triangles, points inserted,
+    the points tried in vain).
     """
     from scipy.spatial import cKDTree
 
@@ -950,9 +1018,10 @@ def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8):
     pts = fc.points
     used = np.zeros(n, bool)
     used[triangles.ravel()] = True
-    todo = np.flatnonzero(~used & ~fc.open)
+    todo = np.flatnonzero(~used if skip is None else ~used & ~skip)
+    failed = np.zeros(n, bool)
     if len(todo) == 0 or len(triangles) == 0:
-        return triangles, 0
+        return triangles, 0, failed
     spacing = _ring_spacing(fc, todo)
     m = len(triangles)
     tris = np.empty((m + 4 * len(todo), 3), np.int64)  # the mesh, then the triangles made
@@ -996,6 +1065,7 @@ def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8):
             yield old, new
 
     for p, h in zip(todo.tolist(), spacing.tolist(), strict=True):
+        failed[p] = True
         x = pts[p]
         made = np.arange(m, top)
         _, idx = tree.query(x, k=min(16, m), distance_upper_bound=2.0 * h + reach)
@@ -1007,7 +1077,11 @@ def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8):
         corners = pts[tris[cand]]
         bary = FillK.closest_on_triangles(x, corners)
         d = np.linalg.norm(np.einsum("kj,kjd->kd", bary, corners) - x, axis=1)
-        ok = np.flatnonzero(d <= far * h)
+        longest = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).max(axis=1)
+        # the local spacing: p's, or the triangle's (its corners' median) when smaller
+        local = np.minimum(h, np.median(_ring_spacing(fc, tris[cand].ravel()).reshape(-1, 3),
+                                         axis=1))
+        ok = np.flatnonzero((d <= far * local) & (longest <= FILL_MAX_EDGE * local))
         if len(ok) == 0:
             continue
         ok = ok[np.lexsort((cand[ok], d[ok]))][:tries]
@@ -1033,8 +1107,9 @@ def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8):
                 done = True
                 break
             if done:
+                failed[p] = False
                 break
-    return tris[:top][alive[:top]], inserted
+    return tris[:top][alive[:top]], inserted, failed
 
 
 def _area(points, triangles) -> float:
