@@ -865,24 +865,24 @@ def _fill_in_space(fc: FanCloud, triangles, max_diameter, state):
 
 
 def _open_state(fc: FanCloud, triangles):
-    """(vt_off, vt, loop_off, loop_verts, unused points of closed fans) of a mesh."""
+    """(vt_off, vt, loop_off, loop_verts, unused points) of a mesh."""
     n = fc.n_points
     vt_off, vt = CsrK.vertex_triangles(triangles, n)
     loop_off, loop_verts = MK.boundary_loops_manifold(triangles, vt_off, vt, n)
     used = np.zeros(n, bool)
     used[triangles.ravel()] = True
-    return vt_off, vt, loop_off, loop_verts, int(np.count_nonzero(~used & ~fc.open))
+    return vt_off, vt, loop_off, loop_verts, int(np.count_nonzero(~used))
 
 
 def _fill_rounds(fc: FanCloud, triangles, max_diameter):
     """Rounds of :func:`_fill_in_space` and point insertion; between rounds, the triangles
     that stand in the way of a hole's fill are taken out (the hole widened), and the
-    round that leaves the fewest boundary edges plus unused points of closed fans is the
+    round that leaves the fewest boundary edges plus twice the unused points is the
     result. At most :data:`FILL_ROUNDS` rounds; they stop when a round changes nothing,
     or after :data:`FILL_PATIENCE` rounds without a better one. Returns (triangles,
     holes filled, points inserted)."""
     state = _open_state(fc, triangles)
-    score = len(state[3]) + state[4]
+    score = len(state[3]) + 2 * state[4]
     if score == 0 or len(triangles) == 0:
         return triangles, 0, 0
     best = (score, triangles, 0, 0)
@@ -900,7 +900,7 @@ def _fill_rounds(fc: FanCloud, triangles, max_diameter):
         filled_all += filled
         inserted_all += inserted + nearest
         state = _open_state(fc, triangles)
-        score = len(state[3]) + state[4]
+        score = len(state[3]) + 2 * state[4]
         if score < best[0]:
             best = (score, triangles, filled_all, inserted_all)
             stale = 0
@@ -1065,7 +1065,6 @@ def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8, skip=N
             yield old, new
 
     for p, h in zip(todo.tolist(), spacing.tolist(), strict=True):
-        failed[p] = True
         x = pts[p]
         made = np.arange(m, top)
         _, idx = tree.query(x, k=min(16, m), distance_upper_bound=2.0 * h + reach)
@@ -1085,6 +1084,7 @@ def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8, skip=N
         if len(ok) == 0:
             continue
         ok = ok[np.lexsort((cand[ok], d[ok]))][:tries]
+        failed[p] = True  # unless a split below is made
         # what the new triangles could cross: the triangles within reach of them
         around = np.concatenate([tree.query_ball_point(x, 2.0 * h + 3.0 * reach), made])
         around = around.astype(np.int64)[alive[around.astype(np.int64)]]
