@@ -16,21 +16,8 @@ import numpy as np
 from numba import njit
 
 from ._edge_kernels import has_edge
+from ._geometry_kernels import triangle_cross
 from .mesh_stats import _longest_edge_normal, _pair_intersects, _triangle_frames
-
-
-@njit(cache=True)
-def _normal(points, a, b, c):
-    ux = points[b, 0] - points[a, 0]
-    uy = points[b, 1] - points[a, 1]
-    uz = points[b, 2] - points[a, 2]
-    vx = points[c, 0] - points[a, 0]
-    vy = points[c, 1] - points[a, 1]
-    vz = points[c, 2] - points[a, 2]
-    nx = uy * vz - uz * vy
-    ny = uz * vx - ux * vz
-    nz = ux * vy - uy * vx
-    return nx, ny, nz
 
 
 @njit(cache=True)
@@ -165,7 +152,7 @@ def fill_loop(points, loop, triangles, vt_off, vt, max_angle, near, normal, long
                 vk = loop[k]
                 if vk == vi or vk == vj:
                     continue
-                nx, ny, nz = _normal(points, vi, vk, vj)
+                nx, ny, nz = triangle_cross(points, vi, vk, vj)
                 n = (sign * nx, sign * ny, sign * nz)
                 s = 0.5 * np.sqrt(nx * nx + ny * ny + nz * nz)
                 if s == 0.0:
@@ -180,18 +167,18 @@ def fill_loop(points, loop, triangles, vt_off, vt, max_angle, near, normal, long
                         if t < 0:
                             continue
                         # the mesh triangle's normal, as it runs (d: +1 e0 -> e1, -1 e1 -> e0)
-                        mx, my, mz = _normal(points, loop[e0], loop[e1], t)
+                        mx, my, mz = triangle_cross(points, loop[e0], loop[e1], t)
                         _, d = _third(triangles, vt_off, vt, loop[e0], loop[e1])
                         mn = (d * mx, d * my, d * mz)
                     else:
                         q = apex[e0, e1]
-                        mx, my, mz = _normal(points, loop[e0], loop[q], loop[e1])
+                        mx, my, mz = triangle_cross(points, loop[e0], loop[q], loop[e1])
                         mn = (sign * mx, sign * my, sign * mz)
                     worst = max(worst, _angle(n, mn))
                 if span == m - 1:  # the closing loop edge (m-1, 0)
                     t = third[m - 1]
                     if t >= 0:
-                        mx, my, mz = _normal(points, loop[m - 1], loop[0], t)
+                        mx, my, mz = triangle_cross(points, loop[m - 1], loop[0], t)
                         _, d = _third(triangles, vt_off, vt, loop[m - 1], loop[0])
                         mn = (d * mx, d * my, d * mz)
                         worst = max(worst, _angle(n, mn))
