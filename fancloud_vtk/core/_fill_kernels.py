@@ -17,7 +17,7 @@ from numba import njit
 
 from ._edge_kernels import has_edge
 from ._geometry_kernels import triangle_cross
-from .mesh_stats import _longest_edge_normal, _pair_intersects, _triangle_frames
+from .mesh_stats import _boxes_apart, _longest_edge_normal, _pair_intersects, _triangle_frames
 
 
 @njit(cache=True)
@@ -81,14 +81,7 @@ def _clear(points, a, b, c, tri, normal, longest, lo, hi, flat, tol, area_tol):
     for t in range(slot):
         if flat[t]:
             continue
-        if (
-            lo[t, 0] > hi[slot, 0]
-            or lo[slot, 0] > hi[t, 0]
-            or lo[t, 1] > hi[slot, 1]
-            or lo[slot, 1] > hi[t, 1]
-            or lo[t, 2] > hi[slot, 2]
-            or lo[slot, 2] > hi[t, 2]
-        ):
+        if _boxes_apart(lo, hi, t, slot):
             continue
         if _pair_intersects(points, tri, normal, longest, slot, t, tol):
             return False
@@ -305,14 +298,7 @@ def meets(points, tri, n_base, tol, area_tol):
         for t in range(m):
             if t == r or flat[t]:
                 continue
-            if (
-                lo[t, 0] > hi[r, 0]
-                or lo[r, 0] > hi[t, 0]
-                or lo[t, 1] > hi[r, 1]
-                or lo[r, 1] > hi[t, 1]
-                or lo[t, 2] > hi[r, 2]
-                or lo[r, 2] > hi[t, 2]
-            ):
+            if _boxes_apart(lo, hi, t, r):
                 continue
             if _pair_intersects(points, tri, normal, longest, r, t, tol):
                 hit[r - n_base] = True

@@ -817,6 +817,19 @@ def _edge_pair_intersect(a, b, c, d, n1, n2, eps):
 
 
 @njit(cache=True)
+def _boxes_apart(lo, hi, i, j):
+    """Are the boxes ``i`` and ``j`` (rows of ``lo``, ``hi``) apart along some axis?"""
+    return (
+        lo[i, 0] > hi[j, 0]
+        or lo[j, 0] > hi[i, 0]
+        or lo[i, 1] > hi[j, 1]
+        or lo[j, 1] > hi[i, 1]
+        or lo[i, 2] > hi[j, 2]
+        or lo[j, 2] > hi[i, 2]
+    )
+
+
+@njit(cache=True)
 def _pair_intersects(points, tri, normal, longest, i, j, tol):
     """Do tested triangles ``i`` and ``j`` intersect (see :func:`self_intersecting_pairs`)?"""
     shared = 0
@@ -914,14 +927,7 @@ def _cell_pairs(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, c
         i = tris[a]
         for b in range(a + 1, cstart[c + 1]):
             j = tris[b]
-            if (
-                lo[i, 0] > hi[j, 0]
-                or lo[j, 0] > hi[i, 0]
-                or lo[i, 1] > hi[j, 1]
-                or lo[j, 1] > hi[i, 1]
-                or lo[i, 2] > hi[j, 2]
-                or lo[j, 2] > hi[i, 2]
-            ):
+            if _boxes_apart(lo, hi, i, j):
                 continue
             # each pair is tested once: in the cell holding the low corner of the overlap
             if (
