@@ -13,7 +13,7 @@ edge of the mesh is not used (it would be a third triangle on that edge).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from ._edge_kernels import has_edge
 from ._geometry_kernels import triangle_cross
@@ -304,3 +304,96 @@ def meets(points, tri, n_base, tol, area_tol):
                 hit[r - n_base] = True
                 break
     return hit
+
+
+@njit(cache=True, parallel=True)
+def centroids_reach(points, triangles):
+    """(centroids ``(m, 3)``, reach): each triangle's centroid, and the largest distance of
+    a corner from its triangle's centroid (what a triangle can touch around its centroid)."""
+    m = triangles.shape[0]
+    cen = np.empty((m, 3))
+    far = np.zeros(m)
+    for t in prange(m):
+        a = triangles[t, 0]
+        b = triangles[t, 1]
+        c = triangles[t, 2]
+        for d in range(3):
+            cen[t, d] = (points[a, d] + points[b, d] + points[c, d]) / 3.0
+        r = 0.0
+        for k in range(3):
+            v = triangles[t, k]
+            s = 0.0
+            for d in range(3):
+                e = points[v, d] - cen[t, d]
+                s += e * e
+            r = max(r, s)
+        far[t] = r
+    reach = 0.0
+    for t in range(m):
+        reach = max(reach, far[t])
+    return cen, np.sqrt(reach)
+
+
+@njit(cache=True, parallel=True)
+def near_seeds(x, seeds, radius):
+    """Mask of the points ``x`` ``(m, 3)`` within ``radius[i]`` of some ``seeds[i]`` (a grid
+    of cells as wide as the largest radius, so a point is compared with the seeds of its
+    own and the 26 neighbouring cells only)."""
+    m = x.shape[0]
+    s = seeds.shape[0]
+    out = np.zeros(m, np.bool_)
+    if s == 0 or m == 0:
+        return out
+    lo = np.empty(3)
+    hi = np.empty(3)
+    for d in range(3):
+        lo[d] = seeds[:, d].min()
+        hi[d] = seeds[:, d].max()
+    r = radius.max()
+    # at most about 1e5 cells a side, whatever the radius (the keys stay in int64)
+    r = max(r, (hi - lo).max() * 1e-5, 1e-300)
+    dims = np.empty(3, np.int64)
+    for d in range(3):
+        dims[d] = np.int64((hi[d] - lo[d]) / r) + 1
+    keys = np.empty(s, np.int64)
+    for i in range(s):
+        c0 = min(np.int64((seeds[i, 0] - lo[0]) / r), dims[0] - 1)
+        c1 = min(np.int64((seeds[i, 1] - lo[1]) / r), dims[1] - 1)
+        c2 = min(np.int64((seeds[i, 2] - lo[2]) / r), dims[2] - 1)
+        keys[i] = (c2 * dims[1] + c1) * dims[0] + c0
+    order = np.argsort(keys, kind="mergesort")
+    sk = keys[order]
+    for t in prange(m):
+        f0 = (x[t, 0] - lo[0]) / r
+        f1 = (x[t, 1] - lo[1]) / r
+        f2 = (x[t, 2] - lo[2]) / r
+        if (f0 < -1.0 or f1 < -1.0 or f2 < -1.0 or f0 >= dims[0] + 1.0
+                or f1 >= dims[1] + 1.0 or f2 >= dims[2] + 1.0):
+            continue
+        i0 = np.int64(np.floor(f0))
+        i1 = np.int64(np.floor(f1))
+        i2 = np.int64(np.floor(f2))
+        found = False
+        for c2 in range(max(i2 - 1, 0), min(i2 + 1, dims[2] - 1) + 1):
+            for c1 in range(max(i1 - 1, 0), min(i1 + 1, dims[1] - 1) + 1):
+                for c0 in range(max(i0 - 1, 0), min(i0 + 1, dims[0] - 1) + 1):
+                    key = (c2 * dims[1] + c1) * dims[0] + c0
+                    j = np.searchsorted(sk, key)
+                    while j < s and sk[j] == key:
+                        q = order[j]
+                        e = 0.0
+                        for d in range(3):
+                            g = x[t, d] - seeds[q, d]
+                            e += g * g
+                        if e <= radius[q] * radius[q]:
+                            found = True
+                            break
+                        j += 1
+                    if found:
+                        break
+                if found:
+                    break
+            if found:
+                break
+        out[t] = found
+    return out

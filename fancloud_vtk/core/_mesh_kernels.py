@@ -965,6 +965,30 @@ def uncontested(tri, alive, count, tri_edge, n_edges, min_count):
 
 
 @njit(cache=True)
+def _csr_of_some(triangles, n, need):
+    """:func:`~fancloud_vtk.core._csr_kernels.csr_of` of the triangles, with the rows of the
+    vertices ``need`` only (the others empty), in increasing triangle number."""
+    m = triangles.shape[0]
+    off = np.zeros(n + 1, np.int64)
+    for t in range(m):
+        for j in range(3):
+            v = triangles[t, j]
+            if need[v]:
+                off[v + 1] += 1
+    for x in range(n):
+        off[x + 1] += off[x]
+    fill = off[:-1].copy()
+    idx = np.empty(off[n], np.int64)
+    for t in range(m):
+        for j in range(3):
+            v = triangles[t, j]
+            if need[v]:
+                idx[fill[v]] = t
+                fill[v] += 1
+    return off, idx
+
+
+@njit(cache=True)
 def insert_unused(points, normals, offsets, ring, triangles, n, skip):
     """Put each unused point into the triangle it lies over (1 -> 3 split).
 
@@ -991,7 +1015,18 @@ def insert_unused(points, normals, offsets, ring, triangles, n, skip):
             n_todo += 1
     if n_todo == 0 or m == 0:
         return triangles, 0
-    vt_off, vt = csr_of(triangles, n)
+    # the triangles at the vertices the unused points look at only (their fan
+    # neighbours and theirs): the mesh may be large and its unused points few
+    need = np.zeros(n, np.bool_)
+    for p in range(n):
+        if used[p]:
+            continue
+        for a in range(offsets[p], offsets[p + 1]):
+            q = ring[a]
+            need[q] = True
+            for b in range(offsets[q], offsets[q + 1]):
+                need[ring[b]] = True
+    vt_off, vt = _csr_of_some(triangles, n, need)
     alive = np.ones(m, np.bool_)
     v_stamp = np.full(n, -1, np.int64)
     t_stamp = np.full(m, -1, np.int64)

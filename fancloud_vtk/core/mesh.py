@@ -746,19 +746,16 @@ def _remove_intersections(fc: FanCloud, triangles, refill, rounds=3):
 def _meets(points, base, new) -> np.ndarray:
     """Per row of ``new``: does it intersect a triangle of ``base`` or another row of ``new``
     (as :func:`~fancloud_vtk.core.mesh_stats.self_intersecting_pairs` tests a pair)?"""
-    from scipy.spatial import cKDTree
-
     from .mesh_stats import AREA_TOL, INTERSECTION_TOL
 
     if len(new) == 0:
         return np.zeros(0, bool)
     if len(base) > 64 * len(new):  # only the base triangles within reach of the new ones
-        cb = points[base].mean(axis=1)
-        reach = np.linalg.norm(points[base] - cb[:, None], axis=2).max()
+        base = np.ascontiguousarray(base, dtype=np.int64)
+        cb, reach = FillK.centroids_reach(points, base)
         cn = points[new].mean(axis=1)
         rn = np.linalg.norm(points[new] - cn[:, None], axis=2).max(axis=1)
-        near = cKDTree(cb).query_ball_point(cn, rn + reach)
-        base = base[np.unique(np.concatenate([np.asarray(x, np.int64) for x in near]))]
+        base = base[FillK.near_seeds(cb, cn, rn + reach)]
     both = np.ascontiguousarray(np.vstack([base, new]), dtype=np.int64)
     return FillK.meets(points, both, len(base), INTERSECTION_TOL, AREA_TOL)
 
@@ -822,20 +819,29 @@ def _fill_in_space(fc: FanCloud, triangles, max_diameter, state):
     starts = loop_off[:-1]
     n_open = np.add.reduceat(fc.open[loop_verts].astype(np.int64), starts)
     small = _loop_small(fc, loop_off, loop_verts, max_diameter) | (4 * n_open < sizes)
-    cen = pts[triangles].mean(axis=1)
-    reach = np.linalg.norm(pts[triangles] - cen[:, None], axis=2).max()
-    tree = cKDTree(cen)
+    which = np.flatnonzero(sizes <= MAX_FILL)
+    if len(which) == 0:
+        return triangles, 0, none
+    # the triangles near the loops: a tree of their centroids only (the mesh may be large
+    # and its holes few)
+    triangles = np.ascontiguousarray(triangles, dtype=np.int64)
+    cen, reach = FillK.centroids_reach(pts, triangles)
+    lid = np.repeat(np.arange(len(sizes)), sizes)
+    centre = np.add.reduceat(pts[loop_verts], starts) / sizes[:, None]
+    extent = np.zeros(len(sizes))
+    np.maximum.at(extent, lid, np.linalg.norm(pts[loop_verts] - centre[lid], axis=1))
+    sub = np.flatnonzero(FillK.near_seeds(cen, centre[which], extent[which] + reach))
+    tree = cKDTree(cen[sub])
     added = []
     blockers = []
     unchecked = (np.zeros((0, 3), np.int64), np.zeros((0, 3)), np.zeros(0), np.zeros((0, 3)),
                  np.zeros((0, 3)), np.zeros(0, bool), 0.0, 0.0)
-    for i in np.flatnonzero(sizes <= MAX_FILL):
+    for i in which:
         loop = np.ascontiguousarray(loop_verts[starts[i] : loop_off[i + 1]])
         if n_open[i] and (not small[i] or _on_real_boundary(fc, loop)):
             continue
-        p = pts[loop]
-        c = p.mean(axis=0)
-        near = tree.query_ball_point(c, np.linalg.norm(p - c, axis=1).max() + reach)
+        c = centre[i]
+        near = sub[tree.query_ball_point(c, extent[i] + reach)]
         local = np.vstack([triangles[near], *added, np.zeros((1, 3), np.int64)])
         local = np.ascontiguousarray(local, dtype=np.int64)
         h_loop = float(np.median(_ring_spacing(fc, loop)))
@@ -1029,9 +1035,11 @@ def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8, skip=N
     alive = np.zeros(len(tris), bool)
     alive[:m] = True
     top = m
-    cen = pts[triangles].mean(axis=1)
-    tree = cKDTree(cen)
-    reach = np.linalg.norm(pts[triangles] - cen[:, None], axis=2).max()
+    # a tree of the centroids of the triangles within reach of the points only (the mesh
+    # may be large and its unused points few)
+    cen, reach = FillK.centroids_reach(pts, np.ascontiguousarray(triangles, dtype=np.int64))
+    sub = np.flatnonzero(FillK.near_seeds(cen, pts[todo], 2.0 * spacing + 3.0 * reach))
+    tree = cKDTree(cen[sub])
     inserted = 0
 
     def facing(rows, o):
@@ -1067,9 +1075,12 @@ def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8, skip=N
     for p, h in zip(todo.tolist(), spacing.tolist(), strict=True):
         x = pts[p]
         made = np.arange(m, top)
-        _, idx = tree.query(x, k=min(16, m), distance_upper_bound=2.0 * h + reach)
-        idx = np.atleast_1d(idx)
-        cand = np.concatenate([idx[idx < m], made])
+        idx = np.zeros(0, np.int64)
+        if len(sub):
+            _, idx = tree.query(x, k=min(16, len(sub)), distance_upper_bound=2.0 * h + reach)
+            idx = np.atleast_1d(idx)
+            idx = sub[idx[idx < len(sub)]]
+        cand = np.concatenate([idx, made])
         cand = cand[alive[cand]]
         if len(cand) == 0:
             continue
@@ -1086,7 +1097,8 @@ def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8, skip=N
         ok = ok[np.lexsort((cand[ok], d[ok]))][:tries]
         failed[p] = True  # unless a split below is made
         # what the new triangles could cross: the triangles within reach of them
-        around = np.concatenate([tree.query_ball_point(x, 2.0 * h + 3.0 * reach), made])
+        ball = tree.query_ball_point(x, 2.0 * h + 3.0 * reach) if len(sub) else []
+        around = np.concatenate([sub[np.asarray(ball, np.int64)], made])
         around = around.astype(np.int64)[alive[around.astype(np.int64)]]
         done = False
         for i in ok.tolist():
