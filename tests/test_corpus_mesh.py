@@ -35,6 +35,24 @@ def test_no_self_intersection_no_non_manifold_element(name):
     assert len(self_intersecting_pairs(mesh.points, mesh.triangles)) == 0
 
 
+def test_the_eight_corners_of_a_cube_give_the_closed_cube():
+    """The 2k nearest of a corner are the whole cloud and have no plane: the corner keeps
+    its fan's plane (normal along the diagonal), and its neighbours' normals, more than
+    90 degrees apart, are oriented by their mirror images (docs/fans.md)."""
+    e = ENTRIES["cube"]
+    fc, mesh = _mesh(e)
+    centre = e.points.mean(axis=0)
+    assert (np.einsum("ij,ij->i", fc.normals, e.points - centre) > 0).all()  # outward
+    s = mesh.stats
+    assert mesh.n_triangles == 12
+    assert s["boundary_edges"] == 0 and s["unused_points"] == 0 and s["holes"] == 0
+    assert s["non_manifold_edges"] == 0 and s["inconsistent_edges"] == 0
+    assert len(self_intersecting_pairs(mesh.points, mesh.triangles)) == 0
+    a, b, c = (mesh.points[mesh.triangles[:, j]] for j in range(3))
+    volume = np.einsum("ij,ij->i", a - centre, np.cross(b - centre, c - centre)).sum() / 6
+    assert volume == pytest.approx(np.prod(np.ptp(e.points, axis=0)))
+
+
 @pytest.mark.parametrize("name", ["bone", "airplane"])
 def test_clean_models_give_their_own_closed_mesh(name):
     e = ENTRIES[name]

@@ -47,12 +47,16 @@ STATUS_ROTATED = 1
 STATUS_OPEN = 2
 STATUS_RETRY = 3  # pool exhausted without a valid fan: retry with the exact pool
 
+#: the 2k nearest have no plane when their scatter's smallest eigenvalue exceeds this
+#: fraction of the middle one (a flat sample with noise of half its spacing stays near 0.25)
+NO_PLANE = 0.95
+
 
 
 @njit(cache=True)
-def _smallest_eigvec(a00, a01, a02, a11, a12, a22):
-    """Unit eigenvector of the smallest eigenvalue of a symmetric 3x3 matrix."""
-    # eigenvalues by the trigonometric method (Smith 1961)
+def _eigenvalues(a00, a01, a02, a11, a12, a22):
+    """(smallest, middle, largest) eigenvalues of a symmetric 3x3 matrix, by the
+    trigonometric method (Smith 1961); all three equal when it is a multiple of I."""
     q = (a00 + a11 + a22) / 3.0
     p1 = a01 * a01 + a02 * a02 + a12 * a12
     b00 = a00 - q
@@ -60,7 +64,7 @@ def _smallest_eigvec(a00, a01, a02, a11, a12, a22):
     b22 = a22 - q
     p2 = b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * p1
     if p2 <= 1e-300:
-        return 0.0, 0.0, 1.0
+        return q, q, q
     pp = np.sqrt(p2 / 6.0)
     det = (
         b00 * (b11 * b22 - a12 * a12)
@@ -74,7 +78,17 @@ def _smallest_eigvec(a00, a01, a02, a11, a12, a22):
         phi = 0.0
     else:
         phi = np.arccos(r) / 3.0
-    lam = q + 2.0 * pp * np.cos(phi + 2.0 * np.pi / 3.0)  # smallest
+    small = q + 2.0 * pp * np.cos(phi + 2.0 * np.pi / 3.0)
+    large = q + 2.0 * pp * np.cos(phi)
+    return small, 3.0 * q - small - large, large
+
+
+@njit(cache=True)
+def _smallest_eigvec(a00, a01, a02, a11, a12, a22):
+    """Unit eigenvector of the smallest eigenvalue of a symmetric 3x3 matrix."""
+    lam, mid, large = _eigenvalues(a00, a01, a02, a11, a12, a22)
+    if lam == large:
+        return 0.0, 0.0, 1.0
     # rows of (A - lam I); the eigenvector is the largest cross product of two rows
     r0x, r0y, r0z = a00 - lam, a01, a02
     r1x, r1y, r1z = a01, a11 - lam, a12
@@ -341,6 +355,13 @@ def _try_plane(points, p, pool, dist, n_sorted, n_avail, m_pool, k, nx, ny, nz, 
 @njit(cache=True)
 def _plane_normal(points, p, pool, k):
     """Least-squares plane normal through p and its k nearest candidates."""
+    return _smallest_eigvec(*_covariance(points, p, pool, k))
+
+
+@njit(cache=True)
+def _covariance(points, p, pool, k):
+    """The six entries (00, 01, 02, 11, 12, 22) of the scatter matrix of p and its k
+    nearest candidates about their centroid."""
     cnt = k + 1
     cx = points[p, 0]
     cy = points[p, 1]
@@ -365,22 +386,34 @@ def _plane_normal(points, p, pool, k):
         a11 += dy * dy
         a12 += dy * dz
         a22 += dz * dz
-    return _smallest_eigvec(a00, a01, a02, a11, a12, a22)
+    return a00, a01, a02, a11, a12, a22
 
 
 @njit(cache=True)
 def _point_normal(points, p, pool, m_pool, n_normal, nx, ny, nz):
-    """Normal stored for p: least-squares plane of its n_normal nearest, signed like n."""
-    ax, ay, az = _plane_normal(points, p, pool, min(n_normal, m_pool))
+    """(normal stored for p, no plane): least-squares plane of its n_normal nearest,
+    signed like n.
+
+    When those points lie about as much across as along any plane (the
+    smallest eigenvalue of their scatter above :data:`NO_PLANE` times the
+    middle one: a corner of a cube, or a cloud of a few points), they have
+    no plane: n (the fan's own plane) is kept.
+    """
+    a00, a01, a02, a11, a12, a22 = _covariance(points, p, pool, min(n_normal, m_pool))
+    small, mid, _ = _eigenvalues(a00, a01, a02, a11, a12, a22)
+    if small > NO_PLANE * mid:
+        return nx, ny, nz, True
+    ax, ay, az = _smallest_eigvec(a00, a01, a02, a11, a12, a22)
     if ax * nx + ay * ny + az * nz < 0.0:
-        return -ax, -ay, -az
-    return ax, ay, az
+        return -ax, -ay, -az, False
+    return ax, ay, az, False
 
 
 @njit(cache=True)
 def _fan_one(points, p, pool, dist, n_sorted, n_avail, m_pool, k, max_gap, rule, rotate, final,
              n_normal, ang, scratch, ring_out):
-    """Fan of point p from its candidate pool. Returns (size, status, nx, ny, nz)."""
+    """Fan of point p from its candidate pool. Returns (size, status, nx, ny, nz, no plane:
+    the normal is the fan's plane, see :func:`_point_normal`)."""
     out = scratch[3]
     kk = min(k, m_pool)
     nx, ny, nz = _plane_normal(points, p, pool, kk)
@@ -389,10 +422,10 @@ def _fan_one(points, p, pool, dist, n_sorted, n_avail, m_pool, k, max_gap, rule,
     if cnt > 0:
         for i in range(cnt):
             ring_out[i] = pool[out[i]]
-        nx, ny, nz = _point_normal(points, p, pool, m_pool, n_normal, nx, ny, nz)
-        return cnt, STATUS_CLOSED, nx, ny, nz
+        nx, ny, nz, flat = _point_normal(points, p, pool, m_pool, n_normal, nx, ny, nz)
+        return cnt, STATUS_CLOSED, nx, ny, nz, flat
     if not final:
-        return 0, STATUS_RETRY, nx, ny, nz
+        return 0, STATUS_RETRY, nx, ny, nz, False
     # the k nearest, sorted by angle in the least-squares plane
     ids = scratch[0]
     srt = scratch[1]
@@ -437,7 +470,7 @@ def _fan_one(points, p, pool, dist, n_sorted, n_avail, m_pool, k, max_gap, rule,
             if cnt > 0:
                 for i in range(cnt):
                     ring_out[i] = pool[out[i]]
-                return cnt, STATUS_ROTATED, rx, ry, rz
+                return cnt, STATUS_ROTATED, rx, ry, rz, False
         # back to the least-squares plane for the open fan
         _angles(points, p, pool, kk, nx, ny, nz, ang)
         for i in range(kk):
@@ -447,8 +480,8 @@ def _fan_one(points, p, pool, dist, n_sorted, n_avail, m_pool, k, max_gap, rule,
     # open fan: start right after the largest gap
     for i in range(kk):
         ring_out[i] = pool[srt[(pos + i) % kk]]
-    nx, ny, nz = _point_normal(points, p, pool, m_pool, n_normal, nx, ny, nz)
-    return kk, STATUS_OPEN, nx, ny, nz
+    nx, ny, nz, flat = _point_normal(points, p, pool, m_pool, n_normal, nx, ny, nz)
+    return kk, STATUS_OPEN, nx, ny, nz, flat
 
 
 @njit(cache=True)
@@ -511,7 +544,7 @@ def reach_limit(points, p, pool, m, k, lim):
 @njit(cache=True, parallel=True)
 def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, max_gap,
                    rule, rotate, n_normal, n_sort, max_block, n_chunks, reach, ring_tab, counts,
-                   status, normals, spacing):
+                   status, normals, spacing, no_plane):
     """Stage 1: fans of the points of cells ``c_lo:c_hi``, neighbours from the grid.
 
     ``points`` are in cell order (see :mod:`._grid_kernels`). Each point's
@@ -524,7 +557,8 @@ def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, ma
     does not depend on it. With ``reach > 0`` only candidates within
     ``reach`` times the distance of the k-th nearest neighbour are tried
     (see :func:`local_spacing` and :func:`reach_limit`). ``spacing[p]``
-    receives p's local spacing (points sent to stage 2 get theirs there).
+    receives p's local spacing (points sent to stage 2 get theirs there);
+    ``no_plane[p]``, whether p's normal is its fan's plane (:func:`_point_normal`).
     """
     n_cells = c_hi - c_lo
     n_chunks = max(1, min(n_cells, n_chunks))
@@ -578,10 +612,11 @@ def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, ma
                     # every point within the limit is certified: the pool is complete
                     final = m_lim >= cap or r * r >= lim2
                 m_pool = min(cap, m_lim)
-                cnt, s, nx, ny, nz = _fan_one(
+                cnt, s, nx, ny, nz, flat = _fan_one(
                     points, p, pool, dist, n_sorted, m_cert, m_pool, k, max_gap, rule, rotate,
                     final, n_normal, ang, scratch, ring_out,
                 )
+                no_plane[p] = flat
                 status[p] = s
                 counts[p] = cnt
                 normals[p, 0] = nx
@@ -593,7 +628,7 @@ def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, ma
 
 @njit(cache=True, parallel=True)
 def fans_from_pool(points, which, pools, k, max_gap, rule, rotate, n_normal, reach, ring_tab,
-                   counts, status, normals, spacing):
+                   counts, status, normals, spacing, no_plane):
     """Stage 2: fans of the points ``which`` from exact candidate pools.
 
     ``pools[i]`` are the nearest neighbours of ``which[i]`` (self first),
@@ -623,10 +658,11 @@ def fans_from_pool(points, which, pools, k, max_gap, rule, rotate, n_normal, rea
             if reach > 0.0 and m >= k:
                 spacing[p] = local_spacing(points, p, pool, k, ang, scratch)
                 m = reach_limit(points, p, pool, m, k, reach * spacing[p])
-            cnt, s, nx, ny, nz = _fan_one(
+            cnt, s, nx, ny, nz, flat = _fan_one(
                 points, p, pool, pool_dist, m, m, m, k, max_gap, rule, rotate, True, n_normal,
                 ang, scratch, ring_out,
             )
+            no_plane[p] = flat
             status[p] = s
             counts[p] = cnt
             normals[p, 0] = nx

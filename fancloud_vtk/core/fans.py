@@ -189,6 +189,7 @@ def build_fans(
     status = np.zeros(n, np.int8)
     normals_s = np.empty((n, 3), np.float64)
     spacing = np.zeros(n, np.float64)
+    no_plane = np.zeros(n, bool)  # the normal is the fan's plane: the 2k nearest have none
     n_cells = grid.n_cells
     n_blocks = max(1, min(16, n // 50_000))
     for b in range(n_blocks):
@@ -196,7 +197,7 @@ def build_fans(
                          (n_cells * b) // n_blocks, (n_cells * (b + 1)) // n_blocks,
                          k, cap, max_gap, rule_id, rotate_sharp_edges, n_normal,
                          n_normal + k // 2, grid.MAX_BLOCK, 4 * numba.get_num_threads(),
-                         reach, ring_tab, counts, status, normals_s, spacing)
+                         reach, ring_tab, counts, status, normals_s, spacing, no_plane)
         _report(progress, 0.05 + 0.75 * (b + 1) / n_blocks, "fans")
 
     retry = np.flatnonzero(status == K.STATUS_RETRY)
@@ -205,13 +206,13 @@ def build_fans(
         # stage 2: the exact k + max_replacements nearest, from wider blocks of cells
         pools, tree = grid.knn(retry, cap, tree, workers)
         K.fans_from_pool(sp, retry, pools, k, max_gap, rule_id, rotate_sharp_edges, n_normal,
-                         reach, ring_tab, counts, status, normals_s, spacing)
+                         reach, ring_tab, counts, status, normals_s, spacing, no_plane)
         del pools
     if rule_id == K.RULE_COVER and np.any(status == K.STATUS_OPEN):
         if tree is None:
             tree = cKDTree(sp, balanced_tree=False)
         _gap_directed_retry(sp, tree, k, cap + 1, max_gap, rotate_sharp_edges, n_normal, reach,
-                            spacing, ring_tab, counts, status, normals_s, workers)
+                            spacing, ring_tab, counts, status, normals_s, no_plane, workers)
     del tree
     timings["fans"] = time.perf_counter() - t1
     _report(progress, 0.85, "orienting normals")
@@ -220,7 +221,7 @@ def build_fans(
     if given_normals is not None:
         flip = np.einsum("ij,ij->i", normals_s, given_normals[order]) < 0
     elif orient:
-        flip = _orientation(sp, normals_s, ring_tab, counts)
+        flip = _orientation(sp, normals_s, ring_tab, counts, no_plane)
     else:
         flip = np.zeros(n, bool)
     flip_fans(normals_s, ring_tab, counts, flip)
@@ -252,7 +253,8 @@ def build_fans(
 
 
 def _gap_directed_retry(sp, tree, k, width, max_gap, rotate, n_normal, reach, spacing, ring_tab,
-                        counts, status, normals, workers, n_dir=16, steps=(1.0, 2.0, 4.0),
+                        counts, status, normals, no_plane, workers, n_dir=16,
+                        steps=(1.0, 2.0, 4.0),
                         rounds=2):
     """Retry open fans with candidates searched in the direction of their void.
 
@@ -307,7 +309,7 @@ def _gap_directed_retry(sp, tree, k, width, max_gap, rotate, n_normal, reach, sp
         if reach > 0.0:
             cand = _within_reach(sp, idx, pools, spacing, reach)
         K.fans_from_pool(sp, idx, cand, k, max_gap, K.RULE_COVER, rotate, n_normal, 0.0,
-                         ring_tab, counts, status, normals, spacing)
+                         ring_tab, counts, status, normals, spacing, no_plane)
         still = status[idx] == K.STATUS_OPEN
         if not still.any():
             return
@@ -448,11 +450,11 @@ def _merge_duplicates(pts, k, given_normals, pdata, kwargs):
     return fc
 
 
-def _orientation(points, normals, ring_tab, counts):
+def _orientation(points, normals, ring_tab, counts, no_plane):
     """Signs for consistent normals: propagation, then outward per component."""
     t_off, t_src = transpose_rings(ring_tab, counts)
-    flip, comp = orient_by_propagation(normals, ring_tab, counts, t_off, t_src, 32,
-                                      ORIENT_RANGE)
+    flip, comp = orient_by_propagation(points, normals, no_plane, ring_tab, counts, t_off, t_src,
+                                      32, ORIENT_RANGE)
     del t_off, t_src
     n_comp = int(comp.max()) + 1
     score = outward_scores(points, normals, flip, ring_tab, counts, comp, n_comp)
