@@ -496,58 +496,6 @@ def test_matches_brute_force_reference(case, planar, seed):
     assert mesh_statistics(space, triangles)["self_intersections"] == len(got)
 
 
-def test_pairs_at_good_stars_are_skipped_and_the_rest_still_found():
-    """Pairs sharing a vertex whose star is a disk seen one to one along its mean normal
-    are not tested (``_good_stars``); a vertex pushed across its ring, a second surface
-    through the first and a pinched vertex are still found, as by brute force."""
-    from fancloud_vtk.core._csr_kernels import vertex_triangles
-    from fancloud_vtk.core.mesh_stats import (
-        AREA_TOL,
-        INTERSECTION_TOL,
-        _good_stars,
-        _triangle_frames,
-    )
-
-    def good_of(points, tri):
-        normal, _, _, _, flat = _triangle_frames(points, tri, AREA_TOL, INTERSECTION_TOL)
-        off, vt = vertex_triangles(tri, len(points))
-        return _good_stars(points, tri, normal, flat, off, vt)
-
-    rng = np.random.default_rng(3)
-    mesh = pv.Sphere(theta_resolution=24, phi_resolution=20).clean()
-    # in general position (the reference's assumption); the stars stay good
-    points = np.asarray(mesh.points, dtype=float) + rng.normal(scale=2e-3, size=(mesh.n_points, 3))
-    tri = triangles_of(mesh)
-    assert good_of(points, tri).all()  # every star of a convex mesh, the poles included
-    # one vertex pushed across its ring: its triangles fold over their neighbours
-    v = int(np.argmin(np.abs(points[:, 2]) + np.abs(points[:, 1])))
-    ring = np.unique(tri[(tri == v).any(axis=1)])
-    far = ring[np.argmax(np.linalg.norm(points[ring] - points[v], axis=1))]
-    bent = points.copy()
-    bent[v] = points[v] + 1.8 * (points[far] - points[v])
-    assert not good_of(bent, tri)[v]
-    # a second, smaller sphere through the first: every star is good, the pairs are not
-    small = pv.Sphere(radius=0.45, center=(0.2, 0, 0), theta_resolution=12,
-                      phi_resolution=10).clean()
-    inner = np.asarray(small.points, dtype=float) + rng.normal(scale=2e-3, size=(small.n_points, 3))
-    two_p = np.vstack([points, inner])
-    two_t = np.vstack([tri, triangles_of(small) + len(points)])
-    assert good_of(two_p, two_t).all()
-    # two fans pinched at a vertex of the first: its star is two disks, not good
-    pinch = np.vstack([points, points[tri[0, 0]] + [[0.02, 0.3, 0.0], [0.02, 0.0, 0.3]]])
-    pinch_t = np.vstack([tri, [[tri[0, 0], len(points), len(points) + 1]]])
-    assert not good_of(pinch, pinch_t)[tri[0, 0]]
-    for p, t, meets in ((bent, tri, True), (two_p, two_t, True), (pinch, pinch_t, False)):
-        with np.errstate(all="ignore"):
-            pairs, hit, sure = reference_pairs(p, t, False)
-        got = self_intersecting_pairs(p, t)
-        m = len(t)
-        mask = np.zeros(len(pairs), dtype=bool)
-        mask[np.searchsorted(pairs[:, 0] * m + pairs[:, 1], got[:, 0] * m + got[:, 1])] = True
-        assert (hit[sure].sum() > 0) == meets
-        assert not (sure & (mask != hit)).any()
-
-
 # ----------------------------------------------------------------------------- input checks
 
 

@@ -42,8 +42,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ._csr_kernels import vertex_triangles
-
 __all__ = [
     "AREA_TOL",
     "INTERSECTION_TOL",
@@ -607,27 +605,6 @@ def _longest_edge_normal(points, tri, t):
 
 
 @njit(cache=True)
-def _frame_row(points, tri, t, area_tol, tol, normal, longest, lo, hi, flat):
-    """Row ``t`` of :func:`_triangle_frames`."""
-    best, nx, ny, nz, nn = _longest_edge_normal(points, tri, t)
-    length = np.sqrt(best)
-    longest[t] = length
-    if nn <= area_tol * best or nn == 0.0:
-        flat[t] = True
-    else:
-        normal[t, 0] = nx / nn
-        normal[t, 1] = ny / nn
-        normal[t, 2] = nz / nn
-    pad = 2.0 * tol * length
-    for c in range(3):
-        x0 = points[tri[t, 0], c]
-        x1 = points[tri[t, 1], c]
-        x2 = points[tri[t, 2], c]
-        lo[t, c] = min(x0, x1, x2) - pad
-        hi[t, c] = max(x0, x1, x2) + pad
-
-
-@njit(cache=True)
 def _triangle_frames(points, tri, area_tol, tol):
     """Unit normal, longest edge, inflated bounding box, zero-area flag per triangle.
 
@@ -642,21 +619,22 @@ def _triangle_frames(points, tri, area_tol, tol):
     hi = np.empty((m, 3))
     flat = np.zeros(m, dtype=np.bool_)
     for t in range(m):
-        _frame_row(points, tri, t, area_tol, tol, normal, longest, lo, hi, flat)
-    return normal, longest, lo, hi, flat
-
-
-@njit(cache=True, parallel=True)
-def _triangle_frames_parallel(points, tri, area_tol, tol):
-    """:func:`_triangle_frames`, in parallel over the triangles."""
-    m = tri.shape[0]
-    normal = np.zeros((m, 3))
-    longest = np.zeros(m)
-    lo = np.empty((m, 3))
-    hi = np.empty((m, 3))
-    flat = np.zeros(m, dtype=np.bool_)
-    for t in prange(m):
-        _frame_row(points, tri, t, area_tol, tol, normal, longest, lo, hi, flat)
+        best, nx, ny, nz, nn = _longest_edge_normal(points, tri, t)
+        length = np.sqrt(best)
+        longest[t] = length
+        if nn <= area_tol * best or nn == 0.0:
+            flat[t] = True
+        else:
+            normal[t, 0] = nx / nn
+            normal[t, 1] = ny / nn
+            normal[t, 2] = nz / nn
+        pad = 2.0 * tol * length
+        for c in range(3):
+            x0 = points[tri[t, 0], c]
+            x1 = points[tri[t, 1], c]
+            x2 = points[tri[t, 2], c]
+            lo[t, c] = min(x0, x1, x2) - pad
+            hi[t, c] = max(x0, x1, x2) + pad
     return normal, longest, lo, hi, flat
 
 
@@ -916,233 +894,6 @@ def _pair_intersects(points, tri, normal, longest, i, j, tol):
 
 
 @njit(cache=True)
-def _shares_good(tri, good, i, j):
-    """Do triangles ``i`` and ``j`` share a vertex whose star is good (:func:`_good_stars`)?"""
-    for a in range(3):
-        v = tri[i, a]
-        if good[v] and (v == tri[j, 0] or v == tri[j, 1] or v == tri[j, 2]):
-            return True
-    return False
-
-
-#: a good star's triangles face its mean normal by at least this cosine
-_STAR_FACING = 1e-2
-
-#: and each spans at least this angle (radians) at the vertex, seen along that normal
-_STAR_ANGLE = 1e-5
-
-
-@njit(cache=True, parallel=True)
-def _good_stars(points, tri, normal, flat, vt_off, vt):
-    """Per vertex: is its star a disk (or half-disk) that projects one to one along its
-    mean normal?
-
-    True when the triangles at ``v`` (at most 64) are consistently oriented
-    and form one fan around it, closed (a cycle) or open (a path); each has
-    an area and faces their mean unit normal ``m`` (``n . m >=``
-    :data:`_STAR_FACING`); and their angles at ``v``, seen along ``m``, are
-    each at least :data:`_STAR_ANGLE` and sum to one turn (closed) or less
-    than one turn (open). The fan's triangles then cover the plane around
-    ``v`` at most once, as seen along ``m``, and each is seen one to one: two
-    of them meet only at ``v`` or along the edge they share. A pair of
-    triangles sharing such a vertex need not be tested.
-    """
-    n = vt_off.size - 1
-    good = np.zeros(n, np.bool_)
-    for v in prange(n):
-        a0 = vt_off[v]
-        k = vt_off[v + 1] - a0
-        if k == 0 or k > 64:
-            continue
-        mx = 0.0
-        my = 0.0
-        mz = 0.0
-        ok = True
-        nxt = np.empty(k, np.int64)  # the star triangle t runs v -> nxt -> prv
-        prv = np.empty(k, np.int64)
-        for i in range(k):
-            t = vt[a0 + i]
-            if flat[t]:
-                ok = False
-                break
-            mx += normal[t, 0]
-            my += normal[t, 1]
-            mz += normal[t, 2]
-            at = -1
-            for c in range(3):
-                if tri[t, c] == v:
-                    at = c
-            nxt[i] = tri[t, (at + 1) % 3]
-            prv[i] = tri[t, (at + 2) % 3]
-        if not ok:
-            continue
-        length = np.sqrt(mx * mx + my * my + mz * mz)
-        if length == 0.0:
-            continue
-        mx /= length
-        my /= length
-        mz /= length
-        # one fan: each link vertex starts and ends at most one triangle, and the walk
-        # from the start (or from any triangle, when closed) visits all of them
-        start = -1
-        for i in range(k):
-            ends = 0
-            starts = 0
-            for j in range(k):
-                if prv[j] == nxt[i]:
-                    ends += 1
-                if nxt[j] == nxt[i]:
-                    starts += 1
-            if starts > 1 or ends > 1:
-                ok = False
-                break
-            if ends == 0:
-                if start >= 0:
-                    ok = False  # two open ends: two fans
-                    break
-                start = i
-        if not ok:
-            continue
-        closed = start < 0
-        i = 0 if closed else start
-        seen = 0
-        total = 0.0
-        while seen < k:
-            t = vt[a0 + i]
-            if normal[t, 0] * mx + normal[t, 1] * my + normal[t, 2] * mz < _STAR_FACING:
-                ok = False
-                break
-            # the angle at v of (v, nxt, prv) seen along m
-            ux = points[nxt[i], 0] - points[v, 0]
-            uy = points[nxt[i], 1] - points[v, 1]
-            uz = points[nxt[i], 2] - points[v, 2]
-            wx = points[prv[i], 0] - points[v, 0]
-            wy = points[prv[i], 1] - points[v, 1]
-            wz = points[prv[i], 2] - points[v, 2]
-            du = ux * mx + uy * my + uz * mz
-            dw = wx * mx + wy * my + wz * mz
-            ux -= du * mx
-            uy -= du * my
-            uz -= du * mz
-            wx -= dw * mx
-            wy -= dw * my
-            wz -= dw * mz
-            cx = uy * wz - uz * wy
-            cy = uz * wx - ux * wz
-            cz = ux * wy - uy * wx
-            sine = cx * mx + cy * my + cz * mz
-            cosine = ux * wx + uy * wy + uz * wz
-            angle = np.arctan2(sine, cosine)
-            if angle < _STAR_ANGLE:
-                ok = False
-                break
-            total += angle
-            seen += 1
-            following = -1
-            for j in range(k):
-                if nxt[j] == prv[i]:
-                    following = j
-            if following < 0:
-                break
-            i = following
-            if closed and i == 0:
-                break
-        if not ok or seen != k:
-            continue
-        if closed:
-            good[v] = total < 3.0 * np.pi  # one turn (a closed fan turns a whole number)
-        else:
-            good[v] = total <= 2.0 * np.pi - _STAR_ANGLE
-    return good
-
-
-@njit(cache=True, parallel=True)
-def _grid_cells(lo, hi, origin, h):
-    """First and last grid cell (per axis) of each triangle's box, and its number of
-    cells."""
-    m = lo.shape[0]
-    ilo = np.empty((m, 3), np.int64)
-    ihi = np.empty((m, 3), np.int64)
-    per = np.empty(m, np.int64)
-    for t in prange(m):
-        c = np.int64(1)
-        for d in range(3):
-            a = np.int64(np.floor((lo[t, d] - origin[d]) / h))
-            b = np.int64(np.floor((hi[t, d] - origin[d]) / h))
-            ilo[t, d] = a
-            ihi[t, d] = b
-            c *= b - a + 1
-        per[t] = c
-    return ilo, ihi, per
-
-
-@njit(cache=True, parallel=True)
-def _grid_dense(ilo, ihi, offsets, dims):
-    """One (dense cell number, triangle) entry per grid cell a triangle's box overlaps;
-    the dense number orders the cells as their packed keys do (z, then y, then x)."""
-    m = ilo.shape[0]
-    total = offsets[m]
-    cell = np.empty(total, dtype=np.int64)
-    tris = np.empty(total, dtype=np.int64)
-    for t in prange(m):
-        o = offsets[t]
-        for z in range(ilo[t, 2], ihi[t, 2] + 1):
-            for y in range(ilo[t, 1], ihi[t, 1] + 1):
-                for x in range(ilo[t, 0], ihi[t, 0] + 1):
-                    cell[o] = (z * dims[1] + y) * dims[0] + x
-                    tris[o] = t
-                    o += 1
-    return cell, tris
-
-
-@njit(cache=True)
-def _radix_sort(cell, tris, top):
-    """``cell`` and ``tris`` sorted by ``cell`` (values in [0, top)), stably: an LSD radix
-    sort on 16-bit digits."""
-    m = cell.size
-    a = cell.copy()
-    b = tris.copy()
-    a2 = np.empty_like(a)
-    b2 = np.empty_like(b)
-    shift = 0
-    while shift == 0 or (top - 1) >> shift > 0:
-        count = np.zeros(65537, np.int64)
-        for i in range(m):
-            count[((a[i] >> shift) & 0xFFFF) + 1] += 1
-        for d in range(65536):
-            count[d + 1] += count[d]
-        for i in range(m):
-            d = (a[i] >> shift) & 0xFFFF
-            a2[count[d]] = a[i]
-            b2[count[d]] = b[i]
-            count[d] += 1
-        a, a2 = a2, a
-        b, b2 = b2, b
-        shift += 16
-    return a, b
-
-
-@njit(cache=True)
-def _cell_starts(cell, dims):
-    """(packed keys, start of each run of equal cells and the end) of sorted cells."""
-    m = cell.size
-    keys = np.empty(m, np.int64)
-    starts = np.empty(m + 1, np.int64)
-    k = 0
-    for i in range(m):
-        c = cell[i]
-        x = c % dims[0]
-        y = (c // dims[0]) % dims[1]
-        z = c // (dims[0] * dims[1])
-        keys[i] = x | (y << 21) | (z << 42)
-        if i == 0 or c != cell[i - 1]:
-            starts[k] = i
-            k += 1
-    starts[k] = m
-    return keys, starts[: k + 1]
-
-
-@njit(cache=True)
 def _grid_entries(ilo, ihi, offsets):
     """One (cell key, triangle) entry per grid cell a triangle's box overlaps."""
     m = ilo.shape[0]
@@ -1161,14 +912,11 @@ def _grid_entries(ilo, ihi, offsets):
 
 
 @njit(cache=True)
-def _cell_pairs(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, c, tol, good,
-                out, pos):
+def _cell_pairs(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, c, tol, out, pos):
     """Test the pairs of cell ``c`` whose box overlap starts in this cell.
 
-    A pair sharing a vertex ``v`` with ``good[v]`` (:func:`_good_stars`: its
-    star is a disk that projects one to one) is not tested: it cannot meet
-    but along what it shares. Writes the intersecting pairs into ``out`` from
-    row ``pos`` when ``out`` has rows; returns the number found.
+    Writes the intersecting pairs into ``out`` from row ``pos`` when ``out``
+    has rows; returns the number found.
     """
     key = keys[cstart[c]]
     cx = key & 0x1FFFFF
@@ -1188,8 +936,6 @@ def _cell_pairs(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, c
                 or max(ilo[i, 2], ilo[j, 2]) != cz
             ):
                 continue
-            if _shares_good(tri, good, i, j):
-                continue
             if _pair_intersects(points, tri, normal, longest, i, j, tol):
                 if out.shape[0]:
                     out[pos + found, 0] = min(i, j)
@@ -1199,20 +945,19 @@ def _cell_pairs(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, c
 
 
 @njit(cache=True, parallel=True)
-def _count_hits(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, tol, good):
+def _count_hits(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, tol):
     n_cells = cstart.size - 1
     hits = np.zeros(n_cells, dtype=np.int64)
     none = np.empty((0, 2), dtype=np.int64)
     for c in prange(n_cells):
         hits[c] = _cell_pairs(
-            points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, c, tol, good, none, 0
+            points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, c, tol, none, 0
         )
     return hits
 
 
 @njit(cache=True)
-def _collect_hits(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, tol, good,
-                  hits):
+def _collect_hits(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, tol, hits):
     offsets = np.zeros(hits.size + 1, dtype=np.int64)
     offsets[1:] = np.cumsum(hits)
     out = np.empty((offsets[-1], 2), dtype=np.int64)
@@ -1231,7 +976,6 @@ def _collect_hits(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart,
                 cstart,
                 c,
                 tol,
-                good,
                 out,
                 offsets[c],
             )
@@ -1244,11 +988,7 @@ def _intersecting_pairs(points: np.ndarray, tri: np.ndarray, keep: np.ndarray) -
     sub = tri[ids]
     if sub.shape[0] < 2:
         return np.empty((0, 2), dtype=np.int64)
-    normal, longest, lo, hi, flat = _triangle_frames_parallel(
-        points, sub, AREA_TOL, INTERSECTION_TOL
-    )
-    vt_off, vt = vertex_triangles(sub, points.shape[0])
-    good = _good_stars(points, sub, normal, flat, vt_off, vt)
+    normal, longest, lo, hi, flat = _triangle_frames(points, sub, AREA_TOL, INTERSECTION_TOL)
     if flat.any():
         ids = ids[~flat]
         sub, normal, longest, lo, hi = (a[~flat] for a in (sub, normal, longest, lo, hi))
@@ -1260,18 +1000,22 @@ def _intersecting_pairs(points: np.ndarray, tri: np.ndarray, keep: np.ndarray) -
     h = _CELL_FACTOR * float((hi - lo).max(axis=1).mean())
     h = max(h, span / ((1 << _AXIS_BITS) - 2), np.finfo(float).tiny)
     while True:
-        ilo, ihi, per = _grid_cells(lo, hi, origin, h)
+        ilo = np.floor((lo - origin) / h).astype(np.int64)
+        ihi = np.floor((hi - origin) / h).astype(np.int64)
+        per = np.prod(ihi - ilo + 1, axis=1)
         if per.sum() <= _CELLS_PER_TRIANGLE * per.size or per.max() == 1:
             break
         h *= 1.5
     offsets = np.zeros(per.size + 1, dtype=np.int64)
     np.cumsum(per, out=offsets[1:])
-    dims = ihi.max(axis=0) + 1
-    cell, tris = _grid_dense(ilo, ihi, offsets, dims)
-    cell, tris = _radix_sort(cell, tris, int(np.prod(dims)))
-    keys, cstart = _cell_starts(cell, dims)
-    args = (points, sub, normal, longest, lo, hi, ilo, keys, tris, cstart, INTERSECTION_TOL,
-            good)
+    keys, tris = _grid_entries(ilo, ihi, offsets)
+    order = np.argsort(keys, kind="stable")
+    keys = keys[order]
+    tris = tris[order]
+    new = np.ones(keys.size, dtype=bool)
+    new[1:] = keys[1:] != keys[:-1]
+    cstart = np.append(np.flatnonzero(new), keys.size)
+    args = (points, sub, normal, longest, lo, hi, ilo, keys, tris, cstart, INTERSECTION_TOL)
     hits = _count_hits(*args)
     local = _collect_hits(*args, hits)
     pairs = ids[local]  # each pair once, i < j (ids increase)
@@ -1315,14 +1059,8 @@ def self_intersecting_pairs(points, triangles) -> np.ndarray:
     triangle bounding-box extents, made larger when the boxes would fill
     more than 6 cells per triangle on average): each triangle is listed in
     the cells its box overlaps, and a pair is tested once, in the cell
-    holding the low corner of the overlap of the boxes (the cells sorted by
-    a radix sort). A pair sharing a vertex whose star is a disk seen one to
-    one along its mean normal (consistently oriented triangles, one fan,
-    each facing that normal, their angles at the vertex adding up to one
-    turn or less) is not tested: two triangles of such a star meet only at
-    the vertex or along their common edge. On a surface meshed from a
-    smooth sample every star is such a disk, and only the pairs that share
-    no vertex are tested. The tests run in parallel over the cells.
+    holding the low corner of the overlap of the boxes. The tests run in
+    parallel over the cells.
 
     Parameters
     ----------
