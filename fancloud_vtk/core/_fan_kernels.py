@@ -86,7 +86,14 @@ def _eigenvalues(a00, a01, a02, a11, a12, a22):
 @njit(cache=True)
 def _smallest_eigvec(a00, a01, a02, a11, a12, a22):
     """Unit eigenvector of the smallest eigenvalue of a symmetric 3x3 matrix."""
-    lam, mid, large = _eigenvalues(a00, a01, a02, a11, a12, a22)
+    lam, _, large = _eigenvalues(a00, a01, a02, a11, a12, a22)
+    return _eigvec_of(a00, a01, a02, a11, a12, a22, lam, large)
+
+
+@njit(cache=True)
+def _eigvec_of(a00, a01, a02, a11, a12, a22, lam, large):
+    """Unit eigenvector of the smallest eigenvalue ``lam`` (the largest: ``large``) of a
+    symmetric 3x3 matrix; (0, 0, 1) when all three are equal."""
     if lam == large:
         return 0.0, 0.0, 1.0
     # rows of (A - lam I); the eigenvector is the largest cross product of two rows
@@ -400,10 +407,10 @@ def _point_normal(points, p, pool, m_pool, n_normal, nx, ny, nz):
     no plane: n (the fan's own plane) is kept.
     """
     a00, a01, a02, a11, a12, a22 = _covariance(points, p, pool, min(n_normal, m_pool))
-    small, mid, _ = _eigenvalues(a00, a01, a02, a11, a12, a22)
+    small, mid, large = _eigenvalues(a00, a01, a02, a11, a12, a22)
     if small > NO_PLANE * mid:
         return nx, ny, nz, True
-    ax, ay, az = _smallest_eigvec(a00, a01, a02, a11, a12, a22)
+    ax, ay, az = _eigvec_of(a00, a01, a02, a11, a12, a22, small, large)
     if ax * nx + ay * ny + az * nz < 0.0:
         return -ax, -ay, -az, False
     return ax, ay, az, False
