@@ -14,11 +14,22 @@ def csr_of(rows, n_keys):
     ``rows`` is (m, k): row r holds k keys in [0, n_keys); key x's rows are
     ``idx[off[x]:off[x + 1]]`` (a row holding x twice appears twice).
     """
+    return csr_of_some(rows, n_keys, np.ones(n_keys, np.bool_))
+
+
+@njit(cache=True)
+def csr_of_some(rows, n_keys, need):
+    """:func:`csr_of` with the rows of the keys ``need`` (mask) only; the others are empty.
+
+    For a few keys of a large table: one pass over the rows, no scatter of the rest.
+    """
     m, k = rows.shape
     off = np.zeros(n_keys + 1, np.int64)
     for r in range(m):
         for j in range(k):
-            off[rows[r, j] + 1] += 1
+            x = rows[r, j]
+            if need[x]:
+                off[x + 1] += 1
     for x in range(n_keys):
         off[x + 1] += off[x]
     fill = off[:-1].copy()
@@ -26,8 +37,9 @@ def csr_of(rows, n_keys):
     for r in range(m):
         for j in range(k):
             x = rows[r, j]
-            idx[fill[x]] = r
-            fill[x] += 1
+            if need[x]:
+                idx[fill[x]] = r
+                fill[x] += 1
     return off, idx
 
 

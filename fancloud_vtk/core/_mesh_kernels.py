@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ._csr_kernels import csr_of
+from ._csr_kernels import csr_of, csr_of_some
 from ._edge_kernels import has_edge
 from ._geometry_kernels import (
     atan2_2pi,
@@ -965,30 +965,6 @@ def uncontested(tri, alive, count, tri_edge, n_edges, min_count):
 
 
 @njit(cache=True)
-def _csr_of_some(triangles, n, need):
-    """:func:`~fancloud_vtk.core._csr_kernels.csr_of` of the triangles, with the rows of the
-    vertices ``need`` only (the others empty), in increasing triangle number."""
-    m = triangles.shape[0]
-    off = np.zeros(n + 1, np.int64)
-    for t in range(m):
-        for j in range(3):
-            v = triangles[t, j]
-            if need[v]:
-                off[v + 1] += 1
-    for x in range(n):
-        off[x + 1] += off[x]
-    fill = off[:-1].copy()
-    idx = np.empty(off[n], np.int64)
-    for t in range(m):
-        for j in range(3):
-            v = triangles[t, j]
-            if need[v]:
-                idx[fill[v]] = t
-                fill[v] += 1
-    return off, idx
-
-
-@njit(cache=True)
 def insert_unused(points, normals, offsets, ring, triangles, n, skip):
     """Put each unused point into the triangle it lies over (1 -> 3 split).
 
@@ -1026,7 +1002,7 @@ def insert_unused(points, normals, offsets, ring, triangles, n, skip):
             need[q] = True
             for b in range(offsets[q], offsets[q + 1]):
                 need[ring[b]] = True
-    vt_off, vt = _csr_of_some(triangles, n, need)
+    vt_off, vt = csr_of_some(triangles, n, need)
     alive = np.ones(m, np.bool_)
     v_stamp = np.full(n, -1, np.int64)
     t_stamp = np.full(m, -1, np.int64)
