@@ -397,3 +397,210 @@ def near_seeds(x, seeds, radius):
                 break
         out[t] = found
     return out
+
+
+@njit(cache=True)
+def _faces_like(points, tri, rows, n_rows, o):
+    """Do the first ``n_rows`` triangles ``rows`` face the way triangle ``o`` of ``tri``
+    does (positive dot product of the unnormalised normals)?"""
+    ref = triangle_cross(points, tri[o, 0], tri[o, 1], tri[o, 2])
+    for r in range(n_rows):
+        c = triangle_cross(points, rows[r, 0], rows[r, 1], rows[r, 2])
+        if c[0] * ref[0] + c[1] * ref[1] + c[2] * ref[2] <= 0.0:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _segment_distance(points, p, a, b):
+    """Distance from point ``p`` to the segment ``ab`` (indices into ``points``)."""
+    ab = points[b] - points[a]
+    t = ((points[p] - points[a]) @ ab) / max(ab @ ab, 1e-300)
+    t = min(1.0, max(0.0, t))
+    return np.sqrt(np.sum((points[a] + t * ab - points[p]) ** 2))
+
+
+@njit(cache=True)
+def _split_crosses(points, tris, around, n_around, old, n_old, new, n_new, tol, area_tol):
+    """Do the new triangles cross a triangle of ``around`` (not in ``old``) or each other?"""
+    both = np.empty((n_around + n_new, 3), np.int64)
+    k = 0
+    for i in range(n_around):
+        t = around[i]
+        skip = False
+        for j in range(n_old):
+            if old[j] == t:
+                skip = True
+        if skip:
+            continue
+        both[k] = tris[t]
+        k += 1
+    for i in range(n_new):
+        both[k + i] = new[i]
+    hit = meets(points, both[: k + n_new], k, tol, area_tol)
+    return hit.any()
+
+
+@njit(cache=True)
+def insert_nearest(points, tris, alive, m, todo, spacing, vspacing, knn_off, knn, ball_off,
+                   ball, far, edge, tries, max_edge, tol, area_tol):
+    """The loop of :func:`fancloud_vtk.core.mesh._insert_nearest` over the points ``todo``.
+
+    ``tris``: the mesh (``m`` rows) and room for the triangles made; ``alive``
+    its mask (changed here). ``spacing[i]``: the local spacing of
+    ``todo[i]``; ``vspacing[v]``: vertex v's (its median ring distance),
+    for every corner that can come up. ``knn`` (CSR): the mesh triangles
+    nearest to each point, in order of distance, within the search bound;
+    ``ball`` (CSR): the mesh triangles a split there could cross. Returns
+    (rows used in ``tris``, points inserted, failed mask over ``todo``).
+    """
+    top = m
+    inserted = 0
+    failed = np.zeros(todo.shape[0], np.bool_)
+    new = np.empty((4, 3), np.int64)
+    old = np.empty(2, np.int64)
+    for i in range(todo.shape[0]):
+        p = todo[i]
+        h = spacing[i]
+        # the candidates: the nearest mesh triangles, then the triangles made so far
+        n_cand = 0
+        cand = np.empty(knn_off[i + 1] - knn_off[i] + top - m, np.int64)
+        for a in range(knn_off[i], knn_off[i + 1]):
+            if alive[knn[a]]:
+                cand[n_cand] = knn[a]
+                n_cand += 1
+        for t in range(m, top):
+            if alive[t]:
+                cand[n_cand] = t
+                n_cand += 1
+        if n_cand == 0:
+            continue
+        corners = np.empty((n_cand, 3, 3))
+        for c in range(n_cand):
+            for j in range(3):
+                corners[c, j] = points[tris[cand[c], j]]
+        bary = closest_on_triangles(points[p], corners)
+        dist = np.empty(n_cand)
+        ok = np.zeros(n_cand, np.bool_)
+        for c in range(n_cand):
+            q = bary[c, 0] * corners[c, 0] + bary[c, 1] * corners[c, 1] \
+                + bary[c, 2] * corners[c, 2]
+            dist[c] = np.sqrt(np.sum((q - points[p]) ** 2))
+            longest = 0.0
+            for j in range(3):
+                longest = max(longest, np.sqrt(np.sum((corners[c, j] - corners[c, (j + 1) % 3])
+                                                      ** 2)))
+            s0 = vspacing[tris[cand[c], 0]]
+            s1 = vspacing[tris[cand[c], 1]]
+            s2 = vspacing[tris[cand[c], 2]]
+            med = max(min(s0, s1), min(max(s0, s1), s2))
+            local = min(h, med)
+            ok[c] = dist[c] <= far * local and longest <= max_edge * local
+        order = np.flatnonzero(ok)
+        if order.shape[0] == 0:
+            continue
+        # by distance, then triangle number
+        key_d = dist[order]
+        key_t = cand[order]
+        for a in range(1, order.shape[0]):
+            j = a
+            while j > 0 and (key_d[j - 1] > key_d[j]
+                             or (key_d[j - 1] == key_d[j] and key_t[j - 1] > key_t[j])):
+                key_d[j - 1], key_d[j] = key_d[j], key_d[j - 1]
+                key_t[j - 1], key_t[j] = key_t[j], key_t[j - 1]
+                order[j - 1], order[j] = order[j], order[j - 1]
+                j -= 1
+        failed[i] = True  # unless a split below is made
+        n_around = 0
+        around = np.empty(ball_off[i + 1] - ball_off[i] + top - m, np.int64)
+        for a in range(ball_off[i], ball_off[i + 1]):
+            if alive[ball[a]]:
+                around[n_around] = ball[a]
+                n_around += 1
+        for t in range(m, top):
+            if alive[t]:
+                around[n_around] = t
+                n_around += 1
+        done = False
+        for r in range(min(tries, order.shape[0])):
+            c = order[r]
+            t = cand[c]
+            a0 = tris[t, 0]
+            b0 = tris[t, 1]
+            c0 = tris[t, 2]
+            if bary[c, 0] >= edge and bary[c, 1] >= edge and bary[c, 2] >= edge:
+                n_sides = 1  # one option: the 1 -> 3 split
+            else:
+                n_sides = 3
+            sides = np.arange(3)
+            if n_sides == 3:  # the edges, nearest to p first (stable)
+                sd = np.empty(3)
+                for k in range(3):
+                    sd[k] = _segment_distance(points, p, tris[t, (k + 1) % 3],
+                                              tris[t, (k + 2) % 3])
+                for a in range(1, 3):
+                    j = a
+                    while j > 0 and sd[sides[j - 1]] > sd[sides[j]]:
+                        sides[j - 1], sides[j] = sides[j], sides[j - 1]
+                        j -= 1
+            for si in range(n_sides):
+                if n_sides == 1:
+                    old[0] = t
+                    n_old = 1
+                    new[0, 0], new[0, 1], new[0, 2] = a0, b0, p
+                    new[1, 0], new[1, 1], new[1, 2] = b0, c0, p
+                    new[2, 0], new[2, 1], new[2, 2] = c0, a0, p
+                    n_new = 3
+                    if not _faces_like(points, tris, new, 3, t):
+                        continue
+                else:
+                    k = sides[si]
+                    u = tris[t, (k + 1) % 3]
+                    v = tris[t, (k + 2) % 3]
+                    w = tris[t, k]
+                    old[0] = t
+                    n_old = 1
+                    new[0, 0], new[0, 1], new[0, 2] = w, u, p
+                    new[1, 0], new[1, 1], new[1, 2] = v, w, p
+                    n_new = 2
+                    # the triangle on the other side: it runs v -> u
+                    s = -1
+                    for a in range(n_around):
+                        g = around[a]
+                        if g == t:
+                            continue
+                        for j in range(3):
+                            if tris[g, j] == v and tris[g, (j + 1) % 3] == u:
+                                s = g
+                        if s >= 0:
+                            break
+                    if not _faces_like(points, tris, new, 2, t):
+                        continue
+                    if s >= 0:
+                        z = tris[s, 0]
+                        for j in range(3):
+                            if tris[s, j] != u and tris[s, j] != v:
+                                z = tris[s, j]
+                        old[1] = s
+                        n_old = 2
+                        new[2, 0], new[2, 1], new[2, 2] = u, z, p
+                        new[3, 0], new[3, 1], new[3, 2] = z, v, p
+                        n_new = 4
+                        if not _faces_like(points, tris, new[2:], 2, s):
+                            continue
+                if _split_crosses(points, tris, around, n_around, old, n_old, new, n_new,
+                                  tol, area_tol):
+                    continue
+                for j in range(n_old):
+                    alive[old[j]] = False
+                for j in range(n_new):
+                    tris[top + j] = new[j]
+                    alive[top + j] = True
+                top += n_new
+                inserted += 1
+                done = True
+                break
+            if done:
+                failed[i] = False
+                break
+    return top, inserted, failed

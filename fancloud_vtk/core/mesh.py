@@ -994,13 +994,6 @@ def _insert_unused_checked(fc: FanCloud, triangles):
         inserted += int((~bad).sum())
 
 
-def _segment_distance(x, a, b) -> float:
-    """Distance from point x to the segment ab."""
-    ab = b - a
-    t = np.clip((x - a) @ ab / max(ab @ ab, 1e-300), 0.0, 1.0)
-    return float(np.linalg.norm(a + t * ab - x))
-
-
 def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8, skip=None):
     """Put each point still unused into the mesh near it.
 
@@ -1018,6 +1011,8 @@ def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8, skip=N
     the points tried in vain).
     """
     from scipy.spatial import cKDTree
+
+    from .mesh_stats import AREA_TOL, INTERSECTION_TOL
 
     far = INSERT_FAR if far is None else far
     n = fc.n_points
@@ -1039,88 +1034,31 @@ def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8, skip=N
     # may be large and its unused points few)
     cen, reach = FillK.centroids_reach(pts, np.ascontiguousarray(triangles, dtype=np.int64))
     sub = np.flatnonzero(FillK.near_seeds(cen, pts[todo], 2.0 * spacing + 3.0 * reach))
-    tree = cKDTree(cen[sub])
-    inserted = 0
-
-    def facing(rows, o):
-        """Do the triangles rows face the way triangle o does?"""
-        a, b, c = pts[tris[o]]
-        q = pts[rows]
-        nrm = np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0])
-        return bool((nrm @ np.cross(b - a, c - a) > 0).all())
-
-    def options(p, t, bary, around):
-        a, b, c = tris[t].tolist()
-        if (bary >= edge).all():
-            yield [t], [[(a, b, p), (b, c, p), (c, a, p)]]
-            return
-        x = pts[p]
-        corners = tris[t].tolist()
-        sides = sorted(range(3), key=lambda k: _segment_distance(
-            x, pts[corners[(k + 1) % 3]], pts[corners[(k + 2) % 3]]))
-        for k in sides:
-            u, v, w = corners[(k + 1) % 3], corners[(k + 2) % 3], corners[k]
-            old = [t]
-            new = [[(w, u, p), (v, w, p)]]
-            # the triangle on the other side: it runs v -> u
-            r = tris[around]
-            runs = ((r == v) & (np.roll(r, -1, axis=1) == u)).any(axis=1) & (around != t)
-            if runs.any():
-                s = int(around[np.flatnonzero(runs)[0]])
-                z = int(tris[s][(tris[s] != u) & (tris[s] != v)][0])
-                old.append(s)
-                new.append([(u, z, p), (z, v, p)])
-            yield old, new
-
-    for p, h in zip(todo.tolist(), spacing.tolist(), strict=True):
-        x = pts[p]
-        made = np.arange(m, top)
-        idx = np.zeros(0, np.int64)
-        if len(sub):
-            _, idx = tree.query(x, k=min(16, len(sub)), distance_upper_bound=2.0 * h + reach)
-            idx = np.atleast_1d(idx)
-            idx = sub[idx[idx < len(sub)]]
-        cand = np.concatenate([idx, made])
-        cand = cand[alive[cand]]
-        if len(cand) == 0:
-            continue
-        corners = pts[tris[cand]]
-        bary = FillK.closest_on_triangles(x, corners)
-        d = np.linalg.norm(np.einsum("kj,kjd->kd", bary, corners) - x, axis=1)
-        longest = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).max(axis=1)
-        # the local spacing: p's, or the triangle's (its corners' median) when smaller
-        local = np.minimum(h, np.median(_ring_spacing(fc, tris[cand].ravel()).reshape(-1, 3),
-                                         axis=1))
-        ok = np.flatnonzero((d <= far * local) & (longest <= FILL_MAX_EDGE * local))
-        if len(ok) == 0:
-            continue
-        ok = ok[np.lexsort((cand[ok], d[ok]))][:tries]
-        failed[p] = True  # unless a split below is made
-        # what the new triangles could cross: the triangles within reach of them
-        ball = tree.query_ball_point(x, 2.0 * h + 3.0 * reach) if len(sub) else []
-        around = np.concatenate([sub[np.asarray(ball, np.int64)], made])
-        around = around.astype(np.int64)[alive[around.astype(np.int64)]]
-        done = False
-        for i in ok.tolist():
-            t = int(cand[i])
-            for old, groups in options(p, t, bary[i], around):
-                if not all(facing(np.asarray(g, np.int64), o)
-                           for o, g in zip(old, groups, strict=True)):
-                    continue
-                new = np.asarray([g for grp in groups for g in grp], np.int64)
-                base = tris[around[~np.isin(around, old)]]
-                if _meets(pts, base, new).any():
-                    continue
-                alive[old] = False
-                tris[top : top + len(new)] = new
-                alive[top : top + len(new)] = True
-                top += len(new)
-                inserted += 1
-                done = True
-                break
-            if done:
-                failed[p] = False
-                break
+    # per point: the 16 mesh triangles nearest (by centroid) within 2 spacings and the
+    # reach, and those within 2 spacings and three reaches (what a split could cross)
+    knn_off = np.zeros(len(todo) + 1, np.int64)
+    ball_off = np.zeros(len(todo) + 1, np.int64)
+    knn = ball = np.zeros(0, np.int64)
+    if len(sub):
+        tree = cKDTree(cen[sub])
+        k = min(16, len(sub))
+        d, idx = tree.query(pts[todo], k=k)
+        d, idx = d.reshape(len(todo), k), idx.reshape(len(todo), k)
+        keep = (idx < len(sub)) & (d < (2.0 * spacing + reach)[:, None])  # as the bound cuts
+        np.cumsum(keep.sum(axis=1), out=knn_off[1:])
+        knn = sub[idx[keep]]
+        near = tree.query_ball_point(pts[todo], 2.0 * spacing + 3.0 * reach)
+        np.cumsum([len(x) for x in near], out=ball_off[1:])
+        ball = sub[np.concatenate([np.asarray(x, np.int64) for x in near])]
+    # the local spacing of every corner that can come up: of the triangles found, and
+    # of the points themselves (corners of the triangles made)
+    corner = np.unique(np.concatenate([triangles[knn].ravel(), triangles[ball].ravel(), todo]))
+    vspacing = np.zeros(n)
+    vspacing[corner] = _ring_spacing(fc, corner)
+    top, inserted, failed_todo = FillK.insert_nearest(
+        pts, tris, alive, m, todo, spacing, vspacing, knn_off, knn, ball_off, ball, float(far),
+        float(edge), int(tries), float(FILL_MAX_EDGE), INTERSECTION_TOL, AREA_TOL)
+    failed[todo[failed_todo]] = True
     return tris[:top][alive[:top]], inserted, failed
 
 
