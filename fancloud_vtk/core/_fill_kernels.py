@@ -442,6 +442,23 @@ def _split_crosses(points, tris, around, n_around, old, n_old, new, n_new, tol, 
 
 
 @njit(cache=True)
+def _alive_rows(off, idx, i, alive, m, top):
+    """The triangles of row ``i`` of the CSR list (``off``, ``idx``), then those made so
+    far (``m`` to ``top``), that are alive."""
+    out = np.empty(off[i + 1] - off[i] + top - m, np.int64)
+    k = 0
+    for a in range(off[i], off[i + 1]):
+        if alive[idx[a]]:
+            out[k] = idx[a]
+            k += 1
+    for t in range(m, top):
+        if alive[t]:
+            out[k] = t
+            k += 1
+    return out[:k]
+
+
+@njit(cache=True)
 def insert_nearest(points, tris, alive, m, todo, spacing, vspacing, knn_off, knn, ball_off,
                    ball, far, edge, tries, max_edge, tol, area_tol):
     """The loop of :func:`fancloud_vtk.core.mesh._insert_nearest` over the points ``todo``.
@@ -463,16 +480,8 @@ def insert_nearest(points, tris, alive, m, todo, spacing, vspacing, knn_off, knn
         p = todo[i]
         h = spacing[i]
         # the candidates: the nearest mesh triangles, then the triangles made so far
-        n_cand = 0
-        cand = np.empty(knn_off[i + 1] - knn_off[i] + top - m, np.int64)
-        for a in range(knn_off[i], knn_off[i + 1]):
-            if alive[knn[a]]:
-                cand[n_cand] = knn[a]
-                n_cand += 1
-        for t in range(m, top):
-            if alive[t]:
-                cand[n_cand] = t
-                n_cand += 1
+        cand = _alive_rows(knn_off, knn, i, alive, m, top)
+        n_cand = cand.shape[0]
         if n_cand == 0:
             continue
         corners = np.empty((n_cand, 3, 3))
@@ -511,16 +520,8 @@ def insert_nearest(points, tris, alive, m, todo, spacing, vspacing, knn_off, knn
                 order[j - 1], order[j] = order[j], order[j - 1]
                 j -= 1
         failed[i] = True  # unless a split below is made
-        n_around = 0
-        around = np.empty(ball_off[i + 1] - ball_off[i] + top - m, np.int64)
-        for a in range(ball_off[i], ball_off[i + 1]):
-            if alive[ball[a]]:
-                around[n_around] = ball[a]
-                n_around += 1
-        for t in range(m, top):
-            if alive[t]:
-                around[n_around] = t
-                n_around += 1
+        around = _alive_rows(ball_off, ball, i, alive, m, top)
+        n_around = around.shape[0]
         done = False
         for r in range(min(tries, order.shape[0])):
             c = order[r]
