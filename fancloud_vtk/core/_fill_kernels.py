@@ -442,6 +442,14 @@ def _split_crosses(points, tris, around, n_around, old, n_old, new, n_new, tol, 
 
 
 @njit(cache=True)
+def _set_row(rows, r, a, b, c):
+    """Row ``r`` of ``rows`` becomes the triangle (a, b, c)."""
+    rows[r, 0] = a
+    rows[r, 1] = b
+    rows[r, 2] = c
+
+
+@njit(cache=True)
 def _alive_rows(off, idx, i, alive, m, top):
     """The triangles of row ``i`` of the CSR list (``off``, ``idx``), then those made so
     far (``m`` to ``top``), that are alive."""
@@ -548,9 +556,9 @@ def insert_nearest(points, tris, alive, m, todo, spacing, vspacing, knn_off, knn
                 if n_sides == 1:
                     old[0] = t
                     n_old = 1
-                    new[0, 0], new[0, 1], new[0, 2] = a0, b0, p
-                    new[1, 0], new[1, 1], new[1, 2] = b0, c0, p
-                    new[2, 0], new[2, 1], new[2, 2] = c0, a0, p
+                    _set_row(new, 0, a0, b0, p)
+                    _set_row(new, 1, b0, c0, p)
+                    _set_row(new, 2, c0, a0, p)
                     n_new = 3
                     if not _faces_like(points, tris, new, 3, t):
                         continue
@@ -561,8 +569,8 @@ def insert_nearest(points, tris, alive, m, todo, spacing, vspacing, knn_off, knn
                     w = tris[t, k]
                     old[0] = t
                     n_old = 1
-                    new[0, 0], new[0, 1], new[0, 2] = w, u, p
-                    new[1, 0], new[1, 1], new[1, 2] = v, w, p
+                    _set_row(new, 0, w, u, p)
+                    _set_row(new, 1, v, w, p)
                     n_new = 2
                     # the triangle on the other side: it runs v -> u
                     s = -1
@@ -584,8 +592,8 @@ def insert_nearest(points, tris, alive, m, todo, spacing, vspacing, knn_off, knn
                                 z = tris[s, j]
                         old[1] = s
                         n_old = 2
-                        new[2, 0], new[2, 1], new[2, 2] = u, z, p
-                        new[3, 0], new[3, 1], new[3, 2] = z, v, p
+                        _set_row(new, 2, u, z, p)
+                        _set_row(new, 3, z, v, p)
                         n_new = 4
                         if not _faces_like(points, tris, new[2:], 2, s):
                             continue
