@@ -274,6 +274,12 @@ REDUCE_PARAMS: tuple[Param, ...] = (
           "than this many uniform spacings at the target count (and than its longest edge "
           "before), so no region is left unsampled whatever the weights; 0: no bound",
           range=(0.0, 1e6)),
+    Param("error_step", "float", 2.0,
+          "error guard of the entropy order on a triangle mesh (an addition to the paper): "
+          "removals go in levels of their quadric error, each level this many times the last, "
+          "the entropy deciding the order within a level, so no removal costs much more error "
+          "than the target needs; 0: no guard (the entropy order alone)",
+          range=(0.0, 1e6)),
     Param("removal", "choice", "auto",
           "how a removal mends the fans around the removed point: 'retriangulate' (a "
           "departure from the paper: its hole is triangulated once and the neighbours' rings "

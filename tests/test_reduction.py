@@ -482,11 +482,23 @@ def test_no_region_is_left_unsampled_on_real_models(name, keep):
 
 
 def test_the_cow_loses_its_body_without_the_bound():
-    """The paper's reduction (no bound) with the default weights empties the cow's flat
-    body (issue 24); the bound keeps it sampled."""
+    """The paper's reduction (no spacing bound, no error guard) with the default weights
+    empties the cow's flat body (issue 24); the bound keeps it sampled, and so does the
+    error guard alone."""
     fc = _real_mesh_fans("cow.obj")
-    assert _gap(fc, reduce(fc, keep=0.3, max_spacing=0), 0.3) > 4.0
+    assert _gap(fc, reduce(fc, keep=0.3, max_spacing=0, error_step=0), 0.3) > 4.0
+    assert _gap(fc, reduce(fc, keep=0.3, error_step=0), 0.3) < 2.5
+    assert _gap(fc, reduce(fc, keep=0.3, max_spacing=0), 0.3) < 2.5
     assert _gap(fc, reduce(fc, keep=0.3), 0.3) < 2.5
+
+
+def test_error_step_is_checked():
+    fc = build_fans(sphere(500, seed=3))
+    for bad in (-1.0, 0.5, 1.0, float("inf"), float("nan")):
+        with pytest.raises(ValueError, match="error_step"):
+            reduce(fc, keep=0.5, error_step=bad)
+    with pytest.raises(TypeError, match="error_step"):
+        reduce(fc, keep=0.5, error_step="2")
 
 
 def test_max_spacing_is_checked():

@@ -138,6 +138,33 @@ def quadric_key(Q, points, centre, R, rlen, ropen, p):
 
 
 @njit(cache=True)
+def weight(Q, s):
+    """The total weight of the planes s stands for (its quadric's trace: the planes'
+    normals are unit vectors)."""
+    return Q[s, 0] + Q[s, 4] + Q[s, 7]
+
+
+@njit(cache=True)
+def mean_square(Q, points, centre, p, q, c):
+    """The cost ``c`` of collapsing p into q as a mean squared distance: over the weight of
+    the planes p and q stand for (0 without planes)."""
+    wt = weight(Q, p) + weight(Q, q)
+    return c / wt if wt > 0.0 else 0.0
+
+
+@njit(cache=True)
+def guard_value(Q, points, centre, R, rlen, ropen, p):
+    """The error guard's value of p (``_reduction_kernels``): the mean squared distance
+    of its cheapest star (inf without a ring)."""
+    best = np.inf
+    for j in range(rlen[p]):
+        if eligible(ropen, rlen, p, j):
+            q = R[p, j]
+            best = min(best, mean_square(Q, points, centre, p, q, cost(Q, points, centre, p, q)))
+    return best
+
+
+@njit(cache=True)
 def star_order(Q, points, centre, R, rlen, ropen, p, js, costs):
     """p's eligible ring positions, cheapest star first (ties: ring order), in ``js``
     with their costs in ``costs``: returns their number."""

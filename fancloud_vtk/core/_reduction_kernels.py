@@ -25,7 +25,7 @@ from numba import get_num_threads, njit, prange
 from ._entropy_kernels import point_cc, point_terms
 from ._geometry_kernels import dist2, tangent
 from ._heap_kernels import heap_update, sift_down
-from ._quadric_kernels import absorb, quadric_key, star_order
+from ._quadric_kernels import absorb, guard_value, mean_square, quadric_key, star_order
 from ._ring_kernels import NOT_STEEP, closed_ring, inversions, open_ring
 from ._splice_kernels import folds_onto_ring, hole_triangles, splice_ring
 
@@ -58,8 +58,10 @@ RemovalLog = namedtuple("RemovalLog", ["order", "detail", "rem_off", "rem_open",
                                        "rem_ring", "ent_x", "ent_open", "ent_off", "ent_ring"])
 #: method 'error': on fans re-formed, the removed points each remaining point carries
 #: (linked lists; else empty); on spliced fans, every point's quadric (``_quadric_kernels``;
-#: else (0, 10)) and the centre its coordinates are taken from
-Carried = namedtuple("Carried", ["head", "nxt", "quad", "centre"])
+#: else (0, 10)) and the centre its coordinates are taken from; ``guard`` (1,): the error
+#: guard of the entropy order on spliced fans, a mean squared distance (inf: no guard; see
+#: ``reduction._run``)
+Carried = namedtuple("Carried", ["head", "nxt", "quad", "centre", "guard"])
 #: what ``reform_batch`` gives for a round's accepted removals ``acc`` (``heir``, ``cost``:
 #: the ring point each collapses into and its cost, with quadrics)
 Batch = namedtuple("Batch", ["acc", "buf_off", "buf", "buf_len", "buf_open", "buf_terms", "ok",
@@ -424,7 +426,22 @@ def _key(points, normals, R, rlen, ropen, dist, curv, cc, col, w, method, carrie
         if carried.quad.shape[0] > 0:
             return quadric_key(carried.quad, points, carried.centre, R, rlen, ropen, x)
         return _deviation(points, normals, x, R[x], rlen[x], carried.head, carried.nxt)
+    if _guarded(carried) and guard_value(carried.quad, points, carried.centre, R, rlen, ropen,
+                                         x) > carried.guard[0]:
+        return INF  # over the error guard: x waits for the guard's next level
     return w[0] * dist[x] + w[1] * curv[x] + w[2] * cc[x] + w[3] * col[x]
+
+
+@njit(cache=True)
+def _guarded(carried):
+    """Whether the entropy order's error guard is on (spliced fans with quadrics)."""
+    return carried.quad.shape[0] > 0 and carried.guard[0] < INF
+
+
+@njit(cache=True)
+def _over_guard(points, carried, p, q, c):
+    return _guarded(carried) and mean_square(carried.quad, points, carried.centre, p, q,
+                                             c) > carried.guard[0]
 
 
 @njit(cache=True)
@@ -446,8 +463,13 @@ def _retriangulate(points, normals, R, rlen, ropen, p, max_edge2, folds, near, h
         if nt > 0 and (folds or not folds_onto_ring(points, R, rlen, ropen, p, htris, nt)):
             if method == METHOD_ERROR and costs[t] > key_p:
                 return -2, R[p, js[t]], costs[t]
+            if method != METHOD_ERROR and _over_guard(points, carried, p, R[p, js[t]],
+                                                      costs[t]):
+                return -1, -1, INF  # the entropy order's error guard: p waits
             return nt, R[p, js[t]], costs[t]
     if method == METHOD_ERROR or m == 0:
+        return -1, -1, INF
+    if _over_guard(points, carried, p, R[p, js[0]], costs[0]):
         return -1, -1, INF
     # the entropy order: no star keeps the manifold, ears may (q takes p's planes anyway)
     return hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, hx, hy,
@@ -1193,6 +1215,15 @@ def commit_batch(cloud, fans, inl, terms, batch, key_now, limit, counters, log, 
     return _apply(R, rlen, ropen, active, IN, nin, over, key, acc, idx, buf_off, buf, buf_len,
                   buf_open, buf_terms, dist, curv, col, key_now, stamp, counters[5],
                   get_num_threads() if m > 64 else 1, points, normals, carried, heir)
+
+
+@njit(cache=True, parallel=True)
+def guard_values(points, R, rlen, ropen, ids, carried):
+    """The error guard's value (``_quadric_kernels.guard_value``) of the points ``ids``."""
+    out = np.empty(ids.shape[0])
+    for i in prange(ids.shape[0]):
+        out[i] = guard_value(carried.quad, points, carried.centre, R, rlen, ropen, ids[i])
+    return out
 
 
 @njit(cache=True, parallel=True)

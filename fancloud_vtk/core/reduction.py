@@ -62,6 +62,15 @@ def target_count(n: int, n_points=None, keep=None) -> int:
 DEFAULT_MAX_SPACING = 4.0
 
 
+#: the error guard of the entropy order on a mesh (:func:`hierarchy`): each level of the
+#: quadric error lets through at least twice the last one's mean squared distance
+DEFAULT_ERROR_STEP = 2.0
+#: the guard's first level lets through the stars of this fraction of the removals asked
+GUARD_START = 0.5
+#: levels in a row that may pass with no point waiting for the guard before it gives up
+GUARD_STALL = 3
+
+
 def _max_edge(max_spacing, n: int, target: int) -> float:
     """The longest new fan edge a removal may make, in mean neighbour distances: the bound
     times the uniform spacing at the target count (inf without a bound)."""
@@ -74,6 +83,15 @@ def _max_edge(max_spacing, n: int, target: int) -> float:
     return float(max_spacing) * float(np.sqrt(n / max(target, 1)))
 
 
+def _error_step(error_step) -> float:
+    """``error_step`` checked: 0 (no guard) or a number > 1."""
+    if isinstance(error_step, bool) or not isinstance(error_step, numbers.Real):
+        raise TypeError(f"error_step must be a number, got {error_step!r}")
+    if not (error_step == 0 or 1.0 < float(error_step) < float("inf")):
+        raise ValueError(f"error_step must be 0 (no guard) or a number > 1, got {error_step!r}")
+    return float(error_step)
+
+
 def _report(progress, fraction, message):
     if progress is not None and progress(float(fraction), message):
         raise Cancelled("the reduction was cancelled")
@@ -81,7 +99,7 @@ def _report(progress, fraction, message):
 
 def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entropy", colors=None,
               exact=False, max_spacing=DEFAULT_MAX_SPACING, removal="auto",
-              progress=None) -> Hierarchy:
+              error_step=DEFAULT_ERROR_STEP, progress=None) -> Hierarchy:
     """The removal hierarchy of a fan cloud or triangle mesh, down to ``n_points``.
 
     Parameters
@@ -138,6 +156,19 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
         refused. ``'auto'``: retriangulate the fan cloud of a triangle mesh
         (``info['source'] == 'triangle mesh'``), re-form fans built from
         points.
+    error_step : float, default: 2.0
+        The error guard of ``method='entropy'`` on retriangulated fans (a
+        mesh's one-rings; an addition to the paper): the removals go in
+        levels of their quadric error (the mean squared distance of the
+        cheapest star, see ``method='error'``, from the surface the point
+        and its heir stand for). The first level admits about half of the
+        removals asked for; when every point left is over the level, the
+        next level is ``error_step`` times higher (or the lowest error that
+        waits, if higher). Within a level the entropy decides the order, so
+        flat parts still thin out first and features stay dense, but no
+        removal costs much more error than the target needs. ``0``: no
+        guard (the entropy order alone, the paper). Fans re-formed from
+        points carry no quadrics and have no guard.
     progress : callable, optional
         ``progress(fraction, message)``; returning True cancels
         (:class:`~fancloud_vtk.Cancelled`).
@@ -169,7 +200,7 @@ def hierarchy(fancloud, n_points=None, *, weights=DEFAULT_WEIGHTS, method="entro
                          f"at least {MIN_POINTS}")
     target = MIN_POINTS if n_points is None else target_count(fc.n_points, n_points, None)
     return _run(fc, target, n_points is not None, weights, method, colors, exact, progress,
-                logs=True, max_spacing=max_spacing, removal=removal)
+                logs=True, max_spacing=max_spacing, removal=removal, error_step=error_step)
 
 
 #: how a removal mends the fans around it (see :func:`hierarchy`)
@@ -187,7 +218,8 @@ def splices(fc: FanCloud, removal) -> bool:
 
 
 def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact, progress,
-         logs: bool, max_spacing=DEFAULT_MAX_SPACING, removal="auto"):
+         logs: bool, max_spacing=DEFAULT_MAX_SPACING, removal="auto",
+         error_step=DEFAULT_ERROR_STEP):
     """The reduction of ``fc`` to ``target`` points: its :class:`Hierarchy` (``logs``), or
     without logs (nothing recorded but the result) the reduced fan cloud itself, which is
     the same as the hierarchy's coarsest level."""
@@ -201,6 +233,7 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     if splices(fc, removal):
         splice = RK.SPLICE_ANY if method == "error" else RK.SPLICE_FOLDS
     max_edge = _max_edge(max_spacing, n, target)
+    error_step = _error_step(error_step)
     rgb = as_colors(colors, fc.point_data, n)
     if method == "entropy" and w[3] > 0 and rgb is None:
         raise ValueError(
@@ -237,7 +270,17 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     centre = pts.mean(axis=0) if n else np.zeros(3)
     quad = (QK.initial_quadrics(pts, R, rlen, ropen, centre) if quadrics
             else np.zeros((0, 10)))
-    carried = RK.Carried(head, nxt, quad, centre)
+    # the entropy order's error guard on spliced fans (error_step > 0): removals go in
+    # levels of the quadric error of their stars, the entropy deciding the order within a
+    # level; the first level lets about half the removals through
+    guarded = method == "entropy" and quadrics and error_step > 0
+    guard = np.array([np.inf])
+    carried = RK.Carried(head, nxt, quad, centre, guard)
+    if guarded and n > target:
+        g = RK.guard_values(pts, R, rlen, ropen, np.arange(n), carried)
+        g = g[np.isfinite(g)]
+        if len(g):
+            guard[0] = float(np.quantile(g, min(1.0, GUARD_START * (n - target) / n)))
     dist, curv, cc, colt, key = RK.init_state(pts, nrm, col, R, rlen, ropen, np.array(w), dbar,
                                               METHODS[method], carried)
     n_remove = n - target
@@ -261,39 +304,59 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     terms = RK.Terms(dist, curv, cc, colt, key)
     log = _Logs(order, detail, rem_off, rem_open, log_off, rem_ring, ent_x, ent_open, ent_off,
                 ent_ring)
-    if exact:
+    chunk = max(1000, n_remove // 50)
+
+    def run(mode):
+        """Removals with the splice mode ``mode`` until the target or until every point
+        left is blocked."""
+        if not exact:
+            _rounds(cloud, wa, dbar, max_edge, mode, near, METHODS[method], fans, inl, terms,
+                    counters, n_remove, log, stamp, progress, carried, logs)
+            return
         heap, hpos = HeapK.heap_of(key, active)
-        chunk = max(1000, n_remove // 50)
         while counters[1] < n_remove:
             before = counters[1]
-            log.grown(RK.reduce_steps(cloud, wa, dbar, max_edge, splice, near,
+            log.grown(RK.reduce_steps(cloud, wa, dbar, max_edge, mode, near,
                                       METHODS[method], fans, inl, terms, heap,
                                       hpos, counters, chunk, target, log.bundle(), stamp,
                                       carried))
             _report(progress, counters[1] / max(n_remove, 1), "reduction")
             if counters[1] == before:
                 break  # every remaining point is blocked
-    else:
-        _rounds(cloud, wa, dbar, max_edge, splice, near, METHODS[method], fans, inl, terms,
-                counters, n_remove, log, stamp, progress, carried, logs)
-    if splice == RK.SPLICE_FOLDS and counters[1] < n_remove:
-        # every point left would sharpen a fold: go on without that rule (the manifold and
-        # its topology are still kept)
+
+    def unblock():
+        """The keys of the points left blocked computed again (under the rules now)."""
         blocked = np.flatnonzero(active & np.isinf(key))
         RK.update_keys(pts, nrm, R, rlen, ropen, dist, curv, cc, colt, key, wa,
                        METHODS[method], dbar, blocked, carried)
-        if exact:
-            heap, hpos = HeapK.heap_of(key, active)
-            while counters[1] < n_remove:
-                before = counters[1]
-                log.grown(RK.reduce_steps(cloud, wa, dbar, max_edge, RK.SPLICE_ANY, near,
-                                          METHODS[method], fans, inl, terms, heap, hpos,
-                                          counters, chunk, target, log.bundle(), stamp, carried))
-                if counters[1] == before:
-                    break
-        else:
-            _rounds(cloud, wa, dbar, max_edge, RK.SPLICE_ANY, near, METHODS[method], fans,
-                    inl, terms, counters, n_remove, log, stamp, progress, carried, logs)
+
+    modes = [splice]
+    if splice == RK.SPLICE_FOLDS:
+        # if every point left would sharpen a fold: on without that rule (the manifold and
+        # its topology are still kept)
+        modes.append(RK.SPLICE_ANY)
+    for i, mode in enumerate(modes):
+        if counters[1] >= n_remove:
+            break
+        if i:
+            unblock()
+        run(mode)
+        stalled = 0
+        while guarded and counters[1] < n_remove and stalled < GUARD_STALL:
+            # the guard's next level: at least error_step times this one, and at least
+            # the lowest value of a point that waits for it
+            before = counters[1]
+            blocked = np.flatnonzero(active & np.isinf(key))
+            g = RK.guard_values(pts, R, rlen, ropen, blocked, carried)
+            waiting = g[np.isfinite(g) & (g > guard[0])]
+            guard[0] = max(guard[0] * error_step, float(waiting.min()) if len(waiting) else 0.0)
+            unblock()
+            run(mode)
+            stalled = 0 if len(waiting) and counters[1] > before else stalled + 1
+    if guarded and counters[1] < n_remove:
+        guard[0] = np.inf  # the last removals without the guard (never seen in the tests)
+        unblock()
+        run(modes[-1])
     rem_ring, ent_x, ent_open, ent_off, ent_ring = (log.rem_ring, log.ent_x, log.ent_open,
                                                     log.ent_off, log.ent_ring)
     r = int(counters[1])
@@ -451,7 +514,7 @@ def _rounds(cloud, w, dbar, max_edge, splice, near, method, fans, inl, terms, co
 
 def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, method="entropy",
            colors=None, exact=False, max_spacing=DEFAULT_MAX_SPACING, removal="auto",
-           return_hierarchy=False, progress=None):
+           error_step=DEFAULT_ERROR_STEP, return_hierarchy=False, progress=None):
     """Reduce a fan cloud (or triangle mesh) to ``n_points`` points by entropy (section 5).
 
     Repeatedly removes the point of lowest entropy (or, with
@@ -491,6 +554,11 @@ def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, metho
         it, which keeps a mesh's one-rings a 2-manifold of the same topology
         (see :func:`hierarchy`). ``'auto'``: retriangulate the fan cloud of a
         triangle mesh, re-form fans built from points.
+    error_step : float, default: 2.0
+        The error guard of the entropy order on retriangulated fans: removals
+        go in levels of quadric error, each ``error_step`` times the last,
+        the entropy deciding within a level (see :func:`hierarchy`; 0: no
+        guard).
     return_hierarchy : bool, default: False
         Also return the :class:`Hierarchy` of the removals.
     progress : callable, optional
@@ -528,9 +596,9 @@ def reduce(fancloud, n_points=None, keep=None, *, weights=DEFAULT_WEIGHTS, metho
     if not return_hierarchy:
         # nothing recorded but the result (the hierarchy's coarsest level)
         return _run(fc, target, True, weights, method, colors, exact, progress, logs=False,
-                    max_spacing=max_spacing, removal=removal)
+                    max_spacing=max_spacing, removal=removal, error_step=error_step)
     h = _run(fc, target, True, weights, method, colors, exact, progress, logs=True,
-             max_spacing=max_spacing, removal=removal)
+             max_spacing=max_spacing, removal=removal, error_step=error_step)
     return h.level(target), h
 
 

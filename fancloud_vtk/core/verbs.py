@@ -303,7 +303,8 @@ def entropy(source: Source, values: dict | None = None, progress=None) -> Result
 def _reduce_values(values: dict) -> dict:
     return {"weights": values["weights"], "method": values["method"],
             "colors": _colors(values), "exact": values["exact"],
-            "max_spacing": values["max_spacing"], "removal": values["removal"]}
+            "max_spacing": values["max_spacing"], "removal": values["removal"],
+            "error_step": values["error_step"]}
 
 
 def reduce(source: Source, values: dict | None = None, progress=None) -> Result:
