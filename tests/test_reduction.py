@@ -509,3 +509,29 @@ def test_max_spacing_is_checked():
             reduce(fc, keep=0.5, max_spacing=bad)
     with pytest.raises(TypeError, match="max_spacing"):
         reduce(fc, keep=0.5, max_spacing="3")
+
+
+def _two_colour_sphere():
+    """A UV sphere mesh, red below the equator and blue above it (a sharp colour edge)."""
+    import pyvista as pv
+
+    from fancloud_vtk import fan_cloud_of_mesh
+
+    m = pv.Sphere(theta_resolution=60, phi_resolution=60).triangulate().clean()
+    p = np.asarray(m.points, dtype=np.float64)
+    rgb = np.where(p[:, 2:3] < 0, [[255, 0, 0]], [[0, 0, 255]]).astype(np.uint8)
+    return p, fan_cloud_of_mesh(p, m.faces.reshape(-1, 4)[:, 1:], point_data={"RGB": rgb})
+
+
+def test_the_colour_weight_keeps_a_colour_edge_dense_under_the_error_guard():
+    """On a mesh, the error guard's levels count the colour loss when a4 > 0, so the kept
+    points gather at the colour edge (the equator of a sphere with one colour per half);
+    without a colour weight they do not."""
+    p, fc = _two_colour_sphere()
+    band = np.abs(p[:, 2]) < 0.03  # the rows of points next to the equator
+    share = {}
+    for w in [(1, 1, 50, 1), (1, 1, 50, 0)]:
+        small = reduce(fc, keep=0.2, weights=w)
+        kept = small.point_data["original_id"]
+        share[w] = band[kept].mean() / band.mean()  # the band's density against the mean
+    assert share[(1, 1, 50, 1)] > 2.0 * share[(1, 1, 50, 0)], share

@@ -58,10 +58,11 @@ RemovalLog = namedtuple("RemovalLog", ["order", "detail", "rem_off", "rem_open",
                                        "rem_ring", "ent_x", "ent_open", "ent_off", "ent_ring"])
 #: method 'error': on fans re-formed, the removed points each remaining point carries
 #: (linked lists; else empty); on spliced fans, every point's quadric (``_quadric_kernels``;
-#: else (0, 10)) and the centre its coordinates are taken from; ``guard`` (1,): the error
-#: guard of the entropy order on spliced fans, a mean squared distance (inf: no guard; see
-#: ``reduction._run``)
-Carried = namedtuple("Carried", ["head", "nxt", "quad", "centre", "guard"])
+#: else (0, 10)) and the centre its coordinates are taken from; ``guard`` (3,): the error
+#: guard of the entropy order on spliced fans (see ``reduction._run``): its level (inf: no
+#: guard) and the factors of a star's mean squared distance and of the colour loss in a
+#: point's guard value; ``rgb``: the colours of the colour loss ((0, 3): none)
+Carried = namedtuple("Carried", ["head", "nxt", "quad", "centre", "guard", "rgb"])
 #: what ``reform_batch`` gives for a round's accepted removals ``acc`` (``heir``, ``cost``:
 #: the ring point each collapses into and its cost, with quadrics)
 Batch = namedtuple("Batch", ["acc", "buf_off", "buf", "buf_len", "buf_open", "buf_terms", "ok",
@@ -426,8 +427,7 @@ def _key(points, normals, R, rlen, ropen, dist, curv, cc, col, w, method, carrie
         if carried.quad.shape[0] > 0:
             return quadric_key(carried.quad, points, carried.centre, R, rlen, ropen, x)
         return _deviation(points, normals, x, R[x], rlen[x], carried.head, carried.nxt)
-    if _guarded(carried) and guard_value(carried.quad, points, carried.centre, R, rlen, ropen,
-                                         x) > carried.guard[0]:
+    if _guarded(carried) and guard_of(points, R, rlen, ropen, carried, x) > carried.guard[0]:
         return INF  # over the error guard: x waits for the guard's next level
     return w[0] * dist[x] + w[1] * curv[x] + w[2] * cc[x] + w[3] * col[x]
 
@@ -439,9 +439,41 @@ def _guarded(carried):
 
 
 @njit(cache=True)
-def _over_guard(points, carried, p, q, c):
-    return _guarded(carried) and mean_square(carried.quad, points, carried.centre, p, q,
-                                             c) > carried.guard[0]
+def _colour_loss(rgb, R, rlen, p):
+    """What removing p loses of the colours: the squared distance of its colour from the
+    mean colour of its ring (0 without colours or ring)."""
+    k = rlen[p]
+    if rgb.shape[0] == 0 or k == 0:
+        return 0.0
+    s = 0.0
+    for c in range(3):
+        m = 0.0
+        for a in range(k):
+            m += rgb[R[p, a], c]
+        d = rgb[p, c] - m / k
+        s += d * d
+    return s
+
+
+@njit(cache=True)
+def guard_of(points, R, rlen, ropen, carried, p):
+    """p's guard value: its cheapest star's mean squared distance and its colour loss,
+    each times its factor (``Carried.guard``)."""
+    g = carried.guard[1] * guard_value(carried.quad, points, carried.centre, R, rlen, ropen, p)
+    if carried.guard[2] > 0.0:
+        g += carried.guard[2] * _colour_loss(carried.rgb, R, rlen, p)
+    return g
+
+
+@njit(cache=True)
+def _over_guard(points, R, rlen, carried, p, q, c):
+    """Whether collapsing p into q at cost c is over the guard's level."""
+    if not _guarded(carried):
+        return False
+    g = carried.guard[1] * mean_square(carried.quad, points, carried.centre, p, q, c)
+    if carried.guard[2] > 0.0:
+        g += carried.guard[2] * _colour_loss(carried.rgb, R, rlen, p)
+    return g > carried.guard[0]
 
 
 @njit(cache=True)
@@ -463,13 +495,13 @@ def _retriangulate(points, normals, R, rlen, ropen, p, max_edge2, folds, near, h
         if nt > 0 and (folds or not folds_onto_ring(points, R, rlen, ropen, p, htris, nt)):
             if method == METHOD_ERROR and costs[t] > key_p:
                 return -2, R[p, js[t]], costs[t]
-            if method != METHOD_ERROR and _over_guard(points, carried, p, R[p, js[t]],
-                                                      costs[t]):
+            if method != METHOD_ERROR and _over_guard(points, R, rlen, carried, p,
+                                                      R[p, js[t]], costs[t]):
                 return -1, -1, INF  # the entropy order's error guard: p waits
             return nt, R[p, js[t]], costs[t]
     if method == METHOD_ERROR or m == 0:
         return -1, -1, INF
-    if _over_guard(points, carried, p, R[p, js[0]], costs[0]):
+    if _over_guard(points, R, rlen, carried, p, R[p, js[0]], costs[0]):
         return -1, -1, INF
     # the entropy order: no star keeps the manifold, ears may (q takes p's planes anyway)
     return hole_triangles(points, normals, R, rlen, ropen, p, max_edge2, folds, near, hx, hy,
@@ -1219,10 +1251,19 @@ def commit_batch(cloud, fans, inl, terms, batch, key_now, limit, counters, log, 
 
 @njit(cache=True, parallel=True)
 def guard_values(points, R, rlen, ropen, ids, carried):
-    """The error guard's value (``_quadric_kernels.guard_value``) of the points ``ids``."""
+    """The error guard's values (:func:`guard_of`) of the points ``ids``."""
     out = np.empty(ids.shape[0])
     for i in prange(ids.shape[0]):
-        out[i] = guard_value(carried.quad, points, carried.centre, R, rlen, ropen, ids[i])
+        out[i] = guard_of(points, R, rlen, ropen, carried, ids[i])
+    return out
+
+
+@njit(cache=True, parallel=True)
+def colour_losses(R, rlen, ids, rgb):
+    """The colour loss (:func:`_colour_loss`) of the points ``ids``."""
+    out = np.empty(ids.shape[0])
+    for i in prange(ids.shape[0]):
+        out[i] = _colour_loss(rgb, R, rlen, ids[i])
     return out
 
 

@@ -92,6 +92,17 @@ def _error_step(error_step) -> float:
     return float(error_step)
 
 
+def _scale(values, q) -> float:
+    """The q-quantile of the finite values, or their mean if that is 0 (1 if all are 0)."""
+    v = values[np.isfinite(values)]
+    if not len(v):
+        return 1.0
+    s = float(np.quantile(v, q))
+    if s <= 0:
+        s = float(v.mean())
+    return s if s > 0 else 1.0
+
+
 def _report(progress, fraction, message):
     if progress is not None and progress(float(fraction), message):
         raise Cancelled("the reduction was cancelled")
@@ -274,13 +285,24 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
     # levels of the quadric error of their stars, the entropy deciding the order within a
     # level; the first level lets about half the removals through
     guarded = method == "entropy" and quadrics and error_step > 0
-    guard = np.array([np.inf])
-    carried = RK.Carried(head, nxt, quad, centre, guard)
+    guard = np.array([np.inf, 1.0, 0.0])
+    with_colour = guarded and w[3] > 0 and rgb is not None
+    carried = RK.Carried(head, nxt, quad, centre, guard,
+                         np.asarray(col, np.float64) if with_colour else np.zeros((0, 3)))
     if guarded and n > target:
-        g = RK.guard_values(pts, R, rlen, ropen, np.arange(n), carried)
+        start = min(1.0, GUARD_START * (n - target) / n)
+        ids = np.arange(n)
+        g = RK.guard_values(pts, R, rlen, ropen, ids, carried)
+        if with_colour:
+            # the two parts in units of their own first levels, the colour's weighted by a4
+            # against a1
+            c = RK.colour_losses(R, rlen, ids, col)
+            guard[1] = 1.0 / _scale(g, start)
+            guard[2] = (w[3] / max(w[0], 1e-12)) / _scale(c, start)
+            g = RK.guard_values(pts, R, rlen, ropen, ids, carried)
         g = g[np.isfinite(g)]
         if len(g):
-            guard[0] = float(np.quantile(g, min(1.0, GUARD_START * (n - target) / n)))
+            guard[0] = float(np.quantile(g, start))
     dist, curv, cc, colt, key = RK.init_state(pts, nrm, col, R, rlen, ropen, np.array(w), dbar,
                                               METHODS[method], carried)
     n_remove = n - target
