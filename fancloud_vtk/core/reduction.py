@@ -346,9 +346,11 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
             if counters[1] == before:
                 break  # every remaining point is blocked
 
-    def unblock():
-        """The keys of the points left blocked computed again (under the rules now)."""
-        blocked = np.flatnonzero(active & np.isinf(key))
+    def unblock(blocked=None):
+        """The keys of the points left blocked (or of ``blocked``) computed again (under the
+        rules now)."""
+        if blocked is None:
+            blocked = np.flatnonzero(active & np.isinf(key))
         RK.update_keys(pts, nrm, R, rlen, ropen, dist, curv, cc, colt, key, wa,
                        METHODS[method], dbar, blocked, carried)
 
@@ -372,7 +374,7 @@ def _run(fc: FanCloud, target: int, strict: bool, weights, method, colors, exact
             g = RK.guard_values(pts, R, rlen, ropen, blocked, carried)
             waiting = g[np.isfinite(g) & (g > guard[0])]
             guard[0] = max(guard[0] * error_step, float(waiting.min()) if len(waiting) else 0.0)
-            unblock()
+            unblock(blocked[g <= guard[0]])  # the others are still over the level
             run(mode)
             stalled = 0 if len(waiting) and counters[1] > before else stalled + 1
     if guarded and counters[1] < n_remove:
