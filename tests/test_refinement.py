@@ -395,3 +395,34 @@ def test_high_valence_fans_keep_the_scratch_small(monkeypatch):
     assert sizes == [5]
     assert fine.n_points == round(1.3 * fc.n_points)
     fine.validate()
+
+
+@pytest.mark.parametrize("name", ["cow", "bunny10k_textured"])
+def test_refining_a_real_mesh_keeps_its_one_rings_and_topology(name):
+    """The cow is far from a Delaunay mesh: re-forming its fans as local Delaunay rings
+    before the insertions made rings that disagree, and its refined mesh had a second
+    piece, an unused point and another Euler characteristic. A mesh now keeps its
+    one-rings and every insertion keeps them agreeing; bunny10k's boundary stays."""
+    import warnings
+
+    from fancloud_vtk import UnreferencedVerticesWarning, fan_cloud_of_mesh, fan_cloud_to_mesh
+    from fancloud_vtk.core.mesh_stats import mesh_statistics
+    from fancloud_vtk.corpus import model
+
+    e = model(name)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnreferencedVerticesWarning)
+        fc = fan_cloud_of_mesh(e.ref_points, e.ref_triangles)
+    before = mesh_statistics(e.ref_points, e.ref_triangles)
+    for factor in (1.5, 4):
+        fine = refine(fc, factor=factor)
+        assert fine.n_points == round(factor * fc.n_points)
+        owner = np.repeat(np.arange(fine.n_points), fine.fan_sizes)
+        there = set(zip(owner.tolist(), fine.ring.tolist(), strict=True))
+        assert all((b, a) in there for a, b in there)  # the rings agree
+        m = fan_cloud_to_mesh(fine, rings="fans", self_intersections=False)
+        after = mesh_statistics(m.points, m.triangles)
+        for key in ("components", "euler_characteristic", "boundary_edges"):
+            assert after[key] == before[key], (name, factor, key)
+        assert after["unused_points"] == 0
+        assert after["non_manifold_edges"] == after["non_manifold_vertices"] == 0

@@ -278,14 +278,17 @@ def _splice(R, rlen, ropen, x, r, u, v, out):
 
 
 @njit(cache=True)
-def _plan(points, normals, colors, R, rlen, ropen, M, p, q1, q2, slot, move, gap, cand, xs, ys,
-          ordr, hull, c, ring_r, xlist, xrings, xlen, xopen, par, wts):
+def _plan(points, normals, colors, R, rlen, ropen, M, p, q1, q2, slot, move, gap, strict, cand,
+          xs, ys, ordr, hull, c, ring_r, xlist, xrings, xlen, xopen, par, wts):
     """Plan the insertion at p (parents q1, q2: ``_parents``) into the scratch row ``slot``
     (reads the fans, writes only row ``slot`` of points, normals and colours and the output
     buffers).
 
     Returns (h, nx): r's ring size (0: no insertion possible) and how many
     fans are re-formed (``xlist[:nx]`` with rings ``xrings[i, :xlen[i]]``).
+    ``strict`` (the one-rings of a mesh): every point of r's ring must take r by
+    splicing, and every neighbour a fan drops must drop that fan's point in turn, so the
+    rings stay the one-rings of one mesh; else no insertion at p.
     """
     par[0] = p
     par[1] = q1
@@ -362,6 +365,8 @@ def _plan(points, normals, colors, R, rlen, ropen, M, p, q1, q2, slot, move, gap
                     xrings[n_x])
         op = False
         if k < 0:
+            if strict:
+                return 0, 0
             k, op = _reform_with(points, normals, R, rlen, ropen, x, slot, cand, xs, ys, ordr,
                                  hull, xrings[n_x])
         if k < 0:
@@ -377,10 +382,43 @@ def _plan(points, normals, colors, R, rlen, ropen, M, p, q1, q2, slot, move, gap
         xlen[n_x] = k
         xopen[n_x] = op
         n_x += 1
+    if strict and not _agree(R, rlen, xlist, xrings, xlen, n_x, h):
+        return 0, 0
     for i in range(n_x):
         if xlist[i] == p:
             return h, n_x
     return 0, 0  # p's fan would not change: the same insertion would come again
+
+
+@njit(cache=True)
+def _in(row, k, z):
+    for a in range(k):
+        if row[a] == z:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _agree(R, rlen, xlist, xrings, xlen, n_x, h):
+    """Whether the planned rings keep the fans the one-rings of one mesh: every point of
+    r's ring takes r (``n_x == h``), and a neighbour w that x's new ring drops is in r's
+    ring too, with a new ring without x."""
+    if n_x != h:
+        return False
+    for t in range(n_x):
+        x = xlist[t]
+        for a in range(rlen[x]):
+            w = R[x, a]
+            if _in(xrings[t], xlen[t], w):
+                continue
+            u = -1
+            for t2 in range(n_x):
+                if xlist[t2] == w:
+                    u = t2
+                    break
+            if u < 0 or _in(xrings[u], xlen[u], x):
+                return False
+    return True
 
 
 @njit(cache=True)
@@ -458,7 +496,7 @@ def _entropy(R, rlen, points, curv, dist, cc, col, M, w, dbar, x):
 
 
 @njit(cache=True)
-def refine_steps(cloud, rings, terms, w, dbar, move, gap, n_cur, n_final, log, counters,
+def refine_steps(cloud, rings, terms, w, dbar, move, gap, strict, n_cur, n_final, log, counters,
                  blocked_out):
     """Insert points one at a time, always at the highest entropy (an indexed heap on -M),
     until ``n_final`` points. Returns (points reached, rr, ex, ex_open, ex_off, er)."""
@@ -494,8 +532,9 @@ def refine_steps(cloud, rings, terms, w, dbar, move, gap, n_cur, n_final, log, c
             break
         f = n_cur
         q1, q2 = _parents(R, rlen, M, p)
-        h, n_x = _plan(points, normals, colors, R, rlen, ropen, M, p, q1, q2, f, move, gap, cand,
-                       xs, ys, ordr, hull, c, ring_r, xlist, xrings, xlen, xopen, par, wts)
+        h, n_x = _plan(points, normals, colors, R, rlen, ropen, M, p, q1, q2, f, move, gap,
+                       strict, cand, xs, ys, ordr, hull, c, ring_r, xlist, xrings, xlen, xopen,
+                       par, wts)
         if h == 0:
             blocked_out[p] = True
             heap_update(heap, hpos, key, p, INF, size)
@@ -577,8 +616,9 @@ def round_accept(cands, R, rlen, M, mark, tag, limit, acc, pq):
 
 
 @njit(cache=True, parallel=True)
-def plan_batch(points, normals, colors, R, rlen, ropen, M, acc, pq, slot0, move, gap, n_chunks,
-               dist, curv, col, dbar, ring_r, ring_h, xlist, xrings, xlen, xopen, n_xs, par, wts):
+def plan_batch(points, normals, colors, R, rlen, ropen, M, acc, pq, slot0, move, gap, strict,
+               n_chunks, dist, curv, col, dbar, ring_r, ring_h, xlist, xrings, xlen, xopen, n_xs,
+               par, wts):
     """Plan the accepted insertions in parallel (in ``n_chunks`` parts), insertion i in
     scratch row slot0 + i; the entropy terms of the planned fans (r's in row slot0 + i) go to
     dist, curv, col."""
@@ -590,7 +630,7 @@ def plan_batch(points, normals, colors, R, rlen, ropen, M, acc, pq, slot0, move,
         for i in range((n_acc * ch) // n_chunks, (n_acc * (ch + 1)) // n_chunks):
             slot = slot0 + i
             h, n_x = _plan(points, normals, colors, R, rlen, ropen, M, acc[i], pq[i, 0], pq[i, 1],
-                           slot, move, gap, cand, xs, ys, ordr, hull, c, ring_r[i],
+                           slot, move, gap, strict, cand, xs, ys, ordr, hull, c, ring_r[i],
                            xlist[i], xrings[i], xlen[i], xopen[i], par[i], wts[i])
             ring_h[i] = h
             n_xs[i] = n_x

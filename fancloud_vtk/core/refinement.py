@@ -107,7 +107,8 @@ class _Log:
         self.rr, self.ex, self.ex_open, self.ex_off, self.er = arrays
 
 
-def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, rings, seq):
+def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, rings, seq,
+            strict=False):
     """Run the insertions; returns the arrays of the refined cloud and the log (with the
     rings a hierarchy needs if ``rings``; the exact mode always logs them). ``seq``: the
     points in an order to compute their first entropies in (space order is faster)."""
@@ -150,7 +151,7 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, ring
         chunk = max(1000, m // 50)
         while n_cur < target:
             before = n_cur
-            out = FK.refine_steps(cloud, rings, terms, wa, dbar, move, gap, n_cur,
+            out = FK.refine_steps(cloud, rings, terms, wa, dbar, move, gap, strict, n_cur,
                                   min(target, n_cur + chunk), log.bundle(), log.counters, blocked)
             n_cur = int(out[0])
             log.set(out[1:])
@@ -175,8 +176,8 @@ def _insert(fc: FanCloud, target: int, w, rgb, dbar, move, exact, progress, ring
                                     min(round_cap, target - n_cur), buf.acc, buf.pq)
             acc, pq = buf.acc[:n_acc], buf.pq[:n_acc]
             b = buf.view(n_acc)
-            FK.plan_batch(pts, nrm, col, R, rlen, ropen, M, acc, pq, target, move, gap, n_chunks,
-                          dist, curv, colt, dbar, *b)
+            FK.plan_batch(pts, nrm, col, R, rlen, ropen, M, acc, pq, target, move, gap, strict,
+                          n_chunks, dist, curv, colt, dbar, *b)
             ok = b[1] > 0
             blocked[acc[~ok]] = True
             n_ok = int(ok.sum())
@@ -279,7 +280,10 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     its fan equals the same weighted combination of p's, q1's and q2's
     (docs/refinement.md). r's fan and the fans it enters are re-formed
     locally (local Delaunay rings, no neighbour search), their entropies
-    updated, and the next p taken from the top.
+    updated, and the next p taken from the top. The fan cloud of a triangle
+    mesh keeps its one-rings: each insertion splices r into its ring points'
+    rings only where they all stay the one-rings of one mesh, so the result
+    has the input's topology and boundary (docs/refinement.md).
 
     Parameters
     ----------
@@ -370,9 +374,13 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
         raise FanCloudInputError("the fans have no neighbours at a distance > 0: nothing to refine")
     _report(progress, 0.0, "refinement: setting up")
     seq = Grid(fc.points).order  # a spatial order to work in (the fan grid's)
-    work = _delaunay(fc, seq)
+    # the one-rings of a mesh agree already; their local Delaunay rings need not (a mesh far
+    # from Delaunay, as a low-poly model), so a mesh keeps its rings and its insertions keep
+    # them agreeing (strict)
+    strict = fc.info.get("source") == "triangle mesh"
+    work = fc if strict else _delaunay(fc, seq)
     pts, nrm, R, rlen, ropen, log = _insert(work, target, w, rgb, dbar, bool(move), bool(exact),
-                                            progress, bool(return_hierarchy), seq)
+                                            progress, bool(return_hierarchy), seq, strict)
     m = target - n0
     ids, offsets, ring, ok = RK.compact_level(R, rlen, np.ones(target, bool))
     if not ok:
