@@ -393,6 +393,8 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     rotated = np.concatenate([fc.rotated, np.zeros(m, bool)])
     out = FanCloud(np.ascontiguousarray(pts), offsets, ring, np.ascontiguousarray(nrm), ropen,
                    rotated, pdata, {"refined_from": n0})
+    if strict:  # still the one-rings of a mesh (a further reduction or refinement keeps them)
+        out.info["source"] = "triangle mesh"
     _report(progress, 1.0, "refinement: done")
     if not return_hierarchy:
         return out
