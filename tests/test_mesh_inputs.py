@@ -20,6 +20,7 @@ import pyvista as pv
 from conftest import dataset_fingerprint, fingerprint
 
 from fancloud_vtk import (
+    DoubtfulMeshWarning,
     UnreferencedVerticesWarning,
     ViewDependentFanCloud,
     entropy,
@@ -117,7 +118,10 @@ def test_a_vertex_of_valence_2000_through_every_stage():
     mesh = fan_cloud_to_mesh(small, rings="fans")
     assert mesh.stats["holes"] == 0 and mesh.stats["non_manifold_edges"] == 0
 
-    fine = refine(fc, n_points=2100, move=False, exact=True)
+    # its fans of thin triangles refuse most insertions that would keep the one-rings
+    # agreeing: the refinement says so and goes on from local Delaunay rings
+    with pytest.warns(DoubtfulMeshWarning, match="stopped early"):
+        fine = refine(fc, n_points=2100, move=False, exact=True)
     assert fine.n_points == 2100 and fine.fan_sizes.max() > 256
 
     vd = ViewDependentFanCloud.build(fc)

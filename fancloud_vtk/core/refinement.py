@@ -379,8 +379,29 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     # them agreeing (strict)
     strict = fc.info.get("source") == "triangle mesh"
     work = fc if strict else _delaunay(fc, seq)
-    pts, nrm, R, rlen, ropen, log = _insert(work, target, w, rgb, dbar, bool(move), bool(exact),
-                                            progress, bool(return_hierarchy), seq, strict)
+    try:
+        pts, nrm, R, rlen, ropen, log = _insert(work, target, w, rgb, dbar, bool(move),
+                                                bool(exact), progress, bool(return_hierarchy),
+                                                seq, strict)
+    except FanCloudInputError as exc:
+        if not strict:
+            raise
+        # too few insertions keep the rings agreeing (fans of very thin triangles, as around
+        # a vertex of valence 2000): the local Delaunay rings, as for fans built from points
+        # (if they stop too, their error is the one to raise)
+        import warnings
+
+        from .mesh import DoubtfulMeshWarning
+
+        strict = False
+        work = _delaunay(fc, seq)
+        pts, nrm, R, rlen, ropen, log = _insert(work, target, w, rgb, dbar, bool(move),
+                                                bool(exact), progress, bool(return_hierarchy),
+                                                seq, strict)
+        warnings.warn(DoubtfulMeshWarning(
+            f"refining this triangle mesh while keeping its one-rings stopped early ({exc}); "
+            "refined from local Delaunay rings instead, which need not agree: the mesh of the "
+            "result may differ from the input's topology"), stacklevel=2)
     m = target - n0
     ids, offsets, ring, ok = RK.compact_level(R, rlen, np.ones(target, bool))
     if not ok:
