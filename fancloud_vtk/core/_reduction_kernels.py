@@ -456,13 +456,20 @@ def _colour_loss(rgb, R, rlen, p):
 
 
 @njit(cache=True)
-def guard_of(points, R, rlen, ropen, carried, p):
-    """p's guard value: its cheapest star's mean squared distance and its colour loss,
+def _guard_sum(R, rlen, carried, p, ms):
+    """A guard value: the mean squared distance ``ms`` of a star of p and p's colour loss,
     each times its factor (``Carried.guard``)."""
-    g = carried.guard[1] * guard_value(carried.quad, points, carried.centre, R, rlen, ropen, p)
+    g = carried.guard[1] * ms
     if carried.guard[2] > 0.0:
         g += carried.guard[2] * _colour_loss(carried.rgb, R, rlen, p)
     return g
+
+
+@njit(cache=True)
+def guard_of(points, R, rlen, ropen, carried, p):
+    """p's guard value, with its cheapest star."""
+    return _guard_sum(R, rlen, carried, p, guard_value(carried.quad, points, carried.centre, R,
+                                                       rlen, ropen, p))
 
 
 @njit(cache=True)
@@ -470,10 +477,8 @@ def _over_guard(points, R, rlen, carried, p, q, c):
     """Whether collapsing p into q at cost c is over the guard's level."""
     if not _guarded(carried):
         return False
-    g = carried.guard[1] * mean_square(carried.quad, points, carried.centre, p, q, c)
-    if carried.guard[2] > 0.0:
-        g += carried.guard[2] * _colour_loss(carried.rgb, R, rlen, p)
-    return g > carried.guard[0]
+    ms = mean_square(carried.quad, points, carried.centre, p, q, c)
+    return _guard_sum(R, rlen, carried, p, ms) > carried.guard[0]
 
 
 @njit(cache=True)

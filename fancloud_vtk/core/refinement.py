@@ -378,11 +378,14 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
     # from Delaunay, as a low-poly model), so a mesh keeps its rings and its insertions keep
     # them agreeing (strict)
     strict = fc.info.get("source") == "triangle mesh"
-    work = fc if strict else _delaunay(fc, seq)
+
+    def insert(strict):
+        work = fc if strict else _delaunay(fc, seq)
+        return work, _insert(work, target, w, rgb, dbar, bool(move), bool(exact), progress,
+                             bool(return_hierarchy), seq, strict)
+
     try:
-        pts, nrm, R, rlen, ropen, log = _insert(work, target, w, rgb, dbar, bool(move),
-                                                bool(exact), progress, bool(return_hierarchy),
-                                                seq, strict)
+        work, (pts, nrm, R, rlen, ropen, log) = insert(strict)
     except FanCloudInputError as exc:
         if not strict:
             raise
@@ -394,10 +397,7 @@ def refine(fancloud, n_points=None, factor=None, *, weights=REFINE_WEIGHTS, colo
         from .mesh import DoubtfulMeshWarning
 
         strict = False
-        work = _delaunay(fc, seq)
-        pts, nrm, R, rlen, ropen, log = _insert(work, target, w, rgb, dbar, bool(move),
-                                                bool(exact), progress, bool(return_hierarchy),
-                                                seq, strict)
+        work, (pts, nrm, R, rlen, ropen, log) = insert(strict)
         warnings.warn(DoubtfulMeshWarning(
             f"refining this triangle mesh while keeping its one-rings stopped early ({exc}); "
             "refined from local Delaunay rings instead, which need not agree: the mesh of the "
