@@ -60,7 +60,9 @@ from fancloud_vtk.bench.report import (
 
 #: The issue's targets for ``bench mesh`` (our method only; the peers are measured, not judged).
 TARGET_NON_MANIFOLD = 0  #: non-manifold edges, and non-manifold vertices
-TARGET_TPP = (1.95, 2.05)  #: triangles per point on a closed surface
+#: triangles per point on a closed surface of genus 0: (2 n - 4) / n (Euler's formula), give
+#: or take this; about 1.95 to 2.05 for a large n, exactly 1.5 for a cube's 8 corners
+TARGET_TPP_TOL = 0.05
 TARGET_SELF_PCT = 0.01  #: self-intersecting triangle pairs, percent of the triangles
 TARGET_MESHLIB_RATIO = 1.0  #: our time / MeshLib's time ...
 MESHLIB_TARGET_SIZES = (100_000, 300_000, 1_000_000)  #: ... at these sizes
@@ -373,7 +375,9 @@ def mesh_rows(res: dict) -> list[dict]:
         ok = ours["status"] == "ok"
         stats = ours.get("stats", {}) if ok else {}
         missing = ours["message"] if not ok else f"n/a ({stats.get('error', 'not measured')})"
-        lo, hi = TARGET_TPP
+        n_used = stats.get("points") or 0
+        euler = 2.0 - 4.0 / n_used if n_used else 2.0
+        lo, hi = round(euler - TARGET_TPP_TOL, 4), round(euler + TARGET_TPP_TOL, 4)
         nm = TARGET_NON_MANIFOLD
         si = stats.get("self_intersections")
         tri = stats.get("triangles") or 0
