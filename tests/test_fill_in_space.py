@@ -177,3 +177,32 @@ def test_a_stray_cluster_cut_in_two_pieces_is_still_stray():
         fc = build_fans(np.vstack([surface, near]))
     out, _ = ME._outliers(fc, np.vstack([sphere_tri, pieces[0]]), 20)
     assert len(out) == len(sphere_tri) + len(pieces[0])
+
+
+def test_a_sparse_row_beside_a_boundary_joins_it_and_a_far_point_does_not():
+    """A row of points beside a plane patch's edge, a little sparser than the patch, gets
+    one ear per point on the boundary; a point 50 spacings off stays out."""
+    from scipy.spatial import Delaunay
+
+    g = np.stack(np.meshgrid(np.arange(10.0), np.arange(10.0)), -1).reshape(-1, 2)
+    row = np.column_stack([np.arange(0.5, 9.0, 2.0), np.full(5, 11.0)])
+    far = np.array([[4.5, 60.0]])
+    pts = np.column_stack([np.vstack([g, row, far]), np.zeros(len(g) + 6)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fc = build_fans(pts)
+    tri = Delaunay(g).simplices.astype(np.int64)
+    n = fc.n_points
+    assert n == len(pts)
+    # oriented as the fans' normals
+    a, b, c = (pts[tri[:, k]] for k in range(3))
+    up = np.cross(b - a, c - a) @ fc.normals[0] > 0
+    tri[~up] = tri[~up][:, [0, 2, 1]]
+    out, attached = ME._attach_to_boundary(fc, tri)
+    assert attached == 5
+    used = np.zeros(n, bool)
+    used[out.ravel()] = True
+    assert used[100:105].all() and not used[105]
+    assert np.array_equal(out[: len(tri)], tri)
+    assert len(self_intersecting_pairs(pts, out)) == 0
+    assert mesh_statistics(pts, out)["non_manifold_edges"] == 0

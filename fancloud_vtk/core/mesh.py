@@ -368,6 +368,8 @@ def fan_cloud_to_mesh(
         triangles, filled, inserted = _fill_rounds(fancloud, triangles, max_hole_diameter)
         stats["holes_closed"] += filled
         stats["points_inserted"] += inserted
+        triangles, attached = _attach_to_boundary(fancloud, triangles)
+        stats["points_inserted"] += attached
     timings["fill_in_space"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -1060,6 +1062,123 @@ def _insert_nearest(fc: FanCloud, triangles, far=None, edge=0.1, tries=8, skip=N
         float(edge), int(tries), float(FILL_MAX_EDGE), INTERSECTION_TOL, AREA_TOL)
     failed[todo[failed_todo]] = True
     return tris[:top][alive[:top]], inserted, failed
+
+
+#: Rounds of :func:`_attach_to_boundary` (a point attached makes new boundary edges for the
+#: next one of a sparse row).
+ATTACH_ROUNDS = 8
+#: An ear of :func:`_attach_to_boundary` faces as the triangle it extends: the cosine of the
+#: angle between their normals is at least this ...
+ATTACH_MIN_DOT = 0.5
+#: ... and the sine of its smallest angle is at least this.
+ATTACH_MIN_SINE = 0.1
+
+
+def _attach_to_boundary(fc: FanCloud, triangles):
+    """Join the points still unused beside the mesh's boundary to it, one ear each.
+
+    A sparse row of samples beside a boundary (a grazing stretch of a range
+    scan) lies over no triangle, so no split takes it in. Unused point p
+    gets the triangle (b, a, p) on a boundary edge a -> b of a triangle
+    (a, b, c), of the 8 boundary edges nearest to p (by midpoint) the first
+    for which: the ear faces as (a, b, c) does (cosine at least
+    :data:`ATTACH_MIN_DOT`, which puts p across the edge from c), the sine of
+    its smallest angle is at least :data:`ATTACH_MIN_SINE`, its longest edge
+    is at most :data:`FILL_MAX_EDGE` local spacings (p's, or the edge's
+    corners' median when smaller: a stray point has a wide ring, so an
+    outlier is never attached), and it crosses no triangle. An edge takes
+    one ear per round; rounds repeat while points attach. Returns
+    (triangles, points attached).
+    """
+    from scipy.spatial import cKDTree
+
+    from .mesh_stats import AREA_TOL, INTERSECTION_TOL
+
+    n = fc.n_points
+    pts = fc.points
+    attached = 0
+    for _ in range(ATTACH_ROUNDS):
+        if len(triangles) == 0:
+            break
+        used = np.zeros(n, bool)
+        used[triangles.ravel()] = True
+        todo = np.flatnonzero(~used)
+        if len(todo) == 0:
+            break
+        tri = np.ascontiguousarray(triangles, dtype=np.int64)
+        # an ear's edges are at most FILL_MAX_EDGE times the smaller of p's spacing and its
+        # edge's: the reach is bounded by p's, and by twice the largest spacing of the fan
+        # neighbours of the points (the surface's around them; a stray point's is wide)
+        h_p = _ring_spacing(fc, todo)
+        around = np.unique(fc.ring[np.concatenate(
+            [np.arange(fc.offsets[p], fc.offsets[p + 1]) for p in todo.tolist()])])
+        cap = 2.0 * _ring_spacing(fc, around).max(initial=0.0)
+        reach = FILL_MAX_EDGE * np.minimum(h_p, cap)
+        # only the triangles within reach (with both triangles of every edge there)
+        cen, t_reach = FillK.centroids_reach(pts, tri)
+        near_t = np.flatnonzero(FillK.near_seeds(cen, pts[todo], reach + 2.0 * t_reach))
+        local = tri[near_t]
+        half = np.concatenate([local[:, [0, 1]], local[:, [1, 2]], local[:, [2, 0]]])
+        third = np.concatenate([local[:, 2], local[:, 0], local[:, 1]])
+        key = half[:, 0] * n + half[:, 1]
+        bnd = ~np.isin(key, half[:, 1] * n + half[:, 0])
+        if not bnd.any():
+            break
+        be, bc = half[bnd], third[bnd]
+        mid = pts[be].mean(axis=1)
+        near_e = FillK.near_seeds(mid, pts[todo], reach)
+        if not near_e.any():
+            break
+        sub = np.flatnonzero(near_e)
+        etree = cKDTree(mid[sub])
+        ttree = cKDTree(cen[near_t]) if len(near_t) else None
+        taken = set()
+        made = []
+        for i, p in enumerate(todo.tolist()):
+            k = min(8, len(sub))
+            d, idx = etree.query(pts[p], k=k)
+            for dist, j in zip(np.atleast_1d(d), np.atleast_1d(idx), strict=True):
+                if j >= len(sub) or dist > reach[i]:
+                    break
+                e = sub[j]
+                a, b, c = int(be[e, 0]), int(be[e, 1]), int(bc[e])
+                if (a, b) in taken:
+                    continue
+                ear = np.array([[b, a, p]], np.int64)
+                if not _ear_ok(fc, a, b, c, p, h_p[i]):
+                    continue
+                base = tri[near_t[ttree.query_ball_point(pts[p], reach[i] + t_reach)]] \
+                    if ttree is not None else np.zeros((0, 3), np.int64)
+                if made:
+                    base = np.vstack([base, np.array(made, np.int64)])
+                both = np.ascontiguousarray(np.vstack([base, ear]), dtype=np.int64)
+                if FillK.meets(pts, both, len(base), INTERSECTION_TOL, AREA_TOL).any():
+                    continue
+                made.append([b, a, p])
+                taken.update({(a, b), (b, p), (p, a)})
+                break
+        if not made:
+            break
+        attached += len(made)
+        triangles = np.vstack([tri, np.array(made, np.int64)])
+    return triangles, attached
+
+
+def _ear_ok(fc: FanCloud, a, b, c, p, h_p) -> bool:
+    """The shape tests of an ear (b, a, p) on the boundary edge a -> b of (a, b, c)."""
+    pa, pb, pc, pp = (fc.points[x] for x in (a, b, c, p))
+    n_abc = np.cross(pb - pa, pc - pa)
+    n_ear = np.cross(pa - pb, pp - pb)
+    s_abc, s_ear = np.linalg.norm(n_abc), np.linalg.norm(n_ear)
+    if s_abc == 0.0 or s_ear == 0.0 or n_abc @ n_ear < ATTACH_MIN_DOT * s_abc * s_ear:
+        return False
+    sides = np.array([np.linalg.norm(pa - pb), np.linalg.norm(pp - pa), np.linalg.norm(pb - pp)])
+    # the sine of the smallest angle: twice the area over the two longer sides' product
+    longer = np.sort(sides)[1:]
+    if s_ear / (longer[0] * longer[1]) < ATTACH_MIN_SINE:
+        return False
+    h = min(h_p, float(np.median(_ring_spacing(fc, np.array([a, b])))))
+    return sides.max() <= FILL_MAX_EDGE * h
 
 
 def _area(points, triangles) -> float:
