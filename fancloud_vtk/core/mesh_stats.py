@@ -763,11 +763,17 @@ def _vertex_pair_intersect(v, a, b, c, d, n1, n2, eps, tau):
     dd = _dot(n1, f2)
     da = _dot(n2, e1)
     db = _dot(n2, e2)
+    coplanar = (abs(dc) <= eps and abs(dd) <= eps) or (abs(da) <= eps and abs(db) <= eps)
+    # one triangle strictly on one side of the other's plane: they meet only at v (the
+    # common case, tested before the unit vectors are made)
+    if not coplanar and ((dc > eps and dd > eps) or (dc < -eps and dd < -eps)
+                         or (da > eps and db > eps) or (da < -eps and db < -eps)):
+        return False
     u1 = _unit(e1)
     u2 = _unit(e2)
     w1 = _unit(f1)
     w2 = _unit(f2)
-    if (abs(dc) <= eps and abs(dd) <= eps) or (abs(da) <= eps and abs(db) <= eps):
+    if coplanar:
         # coplanar: do the two angular sectors at v overlap (or share a ray)?
         n = n1 if (abs(dc) <= eps and abs(dd) <= eps) else n2
         s1 = 1.0 if _dot(n1, n) > 0.0 else -1.0
@@ -780,11 +786,6 @@ def _vertex_pair_intersect(v, a, b, c, d, n1, n2, eps, tau):
             or _in_cone(u1, w1, w2, m2, tau)
             or _in_cone(u2, w1, w2, m2, tau)
         )
-    # one triangle strictly on one side of the other's plane: they meet only at v
-    if (dc > eps and dd > eps) or (dc < -eps and dd < -eps):
-        return False
-    if (da > eps and db > eps) or (da < -eps and db < -eps):
-        return False
     # both meet the line through v common to the planes: on the same side of v?
     u = _unit(_cross(n1, n2))
     if u[0] == 0.0 and u[1] == 0.0 and u[2] == 0.0:
