@@ -192,6 +192,43 @@ def test_errors_vanish_on_a_plane_and_measure_the_fan_distance():
         assert vb.error[node] == pytest.approx(expect, rel=1e-9, abs=1e-12)
 
 
+def test_every_node_error_is_the_largest_leaf_distance_on_a_noisy_open_cloud():
+    """e(r) skips the leaves whose bound (|d.n| plus the tangential offset times the fan's
+    largest tilt) is under the largest distance so far: on every inner node of a noisy
+    half sphere (open fans at its rim, tilted fans), the result is the full maximum."""
+    rng = np.random.default_rng(5)
+    p = rng.normal(size=(1500, 3))
+    p[:, 2] = np.abs(p[:, 2])
+    p /= np.linalg.norm(p, axis=1)[:, None]
+    p += 0.01 * rng.normal(size=p.shape)
+    vd = ViewDependentFanCloud.build(build_fans(p))
+    assert vd.open.any()
+    for node in np.flatnonzero(~vd.is_leaf):
+        leaves = vd.positions[vd.leaves(node)]
+        expect = max(_sector_plane_distance(vd, node, x) for x in leaves)
+        assert vd.error[node] == pytest.approx(expect, rel=1e-9, abs=1e-12)
+
+
+def test_symmetric_adjacency_is_the_sorted_union_of_both_directions():
+    """Rows sorted, no repeats, no self loops; a row of 300 neighbours (a high valence,
+    sorted another way than the short rows) too."""
+    rng = np.random.default_rng(2)
+    n = 400
+    sizes = rng.integers(0, 8, n)
+    sizes[7] = 300
+    offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    ring = rng.integers(0, n, offsets[-1]).astype(np.int64)
+    off, nb = VK.symmetric_adjacency(offsets, ring, n)
+    want = [set() for _ in range(n)]
+    for q in range(n):
+        for x in ring[offsets[q]:offsets[q + 1]]:
+            if x != q:
+                want[q].add(int(x))
+                want[int(x)].add(q)
+    for q in range(n):
+        assert nb[off[q]:off[q + 1]].tolist() == sorted(want[q])
+
+
 def test_forest_of_build_fans_and_of_a_mesh():
     rng = np.random.default_rng(0)
     p = rng.normal(size=(3000, 3))

@@ -50,7 +50,7 @@ REFINED = 2  #: state of a node whose children are shown instead
 # -- adjacency --------------------------------------------------------------------------
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def symmetric_adjacency(offsets, ring, n):
     """Neighbour sets ``q in ring(p) or p in ring(q)`` in CSR form (sorted, no repeats)."""
     deg = np.zeros(n + 1, np.int64)
@@ -71,18 +71,37 @@ def symmetric_adjacency(offsets, ring, n):
                 fill[p] += 1
                 nb[fill[q]] = p
                 fill[q] += 1
-    out_off = np.zeros(n + 1, np.int64)
-    m = 0
-    for p in range(n):
-        row = np.sort(nb[off[p]:off[p + 1]])
+    # every row sorted and without repeats, in place, in parallel
+    size = np.empty(n, np.int64)
+    for p in prange(n):
+        s = off[p]
+        e = off[p + 1]
+        if e - s > 64:
+            nb[s:e] = np.sort(nb[s:e])
+        else:
+            for a in range(s + 1, e):  # insertion sort: rows are short
+                x = nb[a]
+                b = a - 1
+                while b >= s and nb[b] > x:
+                    nb[b + 1] = nb[b]
+                    b -= 1
+                nb[b + 1] = x
+        m = 0
         last = -1
-        for a in range(row.shape[0]):
-            if row[a] != last:
-                nb[m] = row[a]
+        for a in range(s, e):
+            if nb[a] != last:
+                nb[s + m] = nb[a]
                 m += 1
-                last = row[a]
-        out_off[p + 1] = m
-    return out_off, nb[:m].copy()
+                last = nb[a]
+        size[p] = m
+    out_off = np.zeros(n + 1, np.int64)
+    for p in range(n):
+        out_off[p + 1] = out_off[p] + size[p]
+    out = np.empty(out_off[n], np.int64)
+    for p in prange(n):
+        for a in range(size[p]):
+            out[out_off[p] + a] = nb[off[p] + a]
+    return out_off, out
 
 
 @njit(cache=True)
@@ -889,8 +908,27 @@ def node_errors(pos, nrm, child, ring_off, ring, is_open, order, lo, hi, nodes):
                 ang[j] = np.nan
                 _plane_normal(pos, r, q, fan[j + 1] if j + 1 < k else fan[0], nx, ny, nz, pn, j)
             opn = is_open[r]
+            # a leaf's distance from any sector's plane is at most |d.n| + |d_t| tilt, with
+            # d_t its offset along the tangent plane and tilt the largest sine between a
+            # sector's normal and n: the leaves under that bound cannot raise e
+            tilt = 0.0
+            for j in range(k):
+                c = pn[j, 0] * nx + pn[j, 1] * ny + pn[j, 2] * nz
+                t2 = pn[j, 0] * pn[j, 0] + pn[j, 1] * pn[j, 1] + pn[j, 2] * pn[j, 2] - c * c
+                if t2 > tilt:
+                    tilt = t2
+            tilt = np.sqrt(tilt)
             e = 0.0
             for li in range(lo[r], hi[r]):
+                dx = lp[li, 0] - pos[r, 0]
+                dy = lp[li, 1] - pos[r, 1]
+                dz = lp[li, 2] - pos[r, 2]
+                dn = abs(dx * nx + dy * ny + dz * nz)
+                a = dx * ux + dy * uy + dz * uz
+                b = dx * vx + dy * vy + dz * vz
+                dt = np.sqrt(a * a + b * b)
+                if dn + dt * tilt + 1e-9 * (dn + dt) < e:
+                    continue
                 d = _fan_distance(pos, r, lp[li, 0], lp[li, 1], lp[li, 2], nx, ny, nz, ux, uy,
                                   uz, vx, vy, vz, fan, 0, k, opn, pa, ang, pn)
                 if d > e:
@@ -1524,7 +1562,7 @@ def inner_postorder(child, n_leaves):
     return new
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def renumbered(new, pos, nrm, col, child, ring_off, ring, opn):
     """The node tables with node ``x`` moved to ``new[x]`` (children, rings renamed)."""
     n = new.shape[0]
@@ -1541,7 +1579,7 @@ def renumbered(new, pos, nrm, col, child, ring_off, ring, opn):
         x = old[y]
         off2[y + 1] = off2[y] + ring_off[x + 1] - ring_off[x]
     ring2 = np.empty(off2[n], np.int64)
-    for y in range(n):
+    for y in prange(n):
         x = old[y]
         for d in range(3):
             pos2[y, d] = pos[x, d]
