@@ -159,6 +159,13 @@ FAN_PARAMS: tuple[Param, ...] = (
         range=(0.0, 1e6),
     ),
     Param(
+        "separate_sheets", "bool", False,
+        "two sheets closer than the spacing (an addition to the paper): where a point's "
+        "nearest neighbours form two parallel layers, the other layer's points do not "
+        "enter its fan, so the two sides of a thin part are not joined (off by default: "
+        "see docs/fans.md section 6c)",
+    ),
+    Param(
         "orient", "bool", True,
         "orient normals consistently by propagation (outward on closed surfaces) when the "
         "input has no normals",

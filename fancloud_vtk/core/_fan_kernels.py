@@ -396,6 +396,217 @@ def _covariance(points, p, pool, k):
     return a00, a01, a02, a11, a12, a22
 
 
+#: two layers among a point's ``n_normal`` nearest (two sheets closer than the
+#: spacing: the two sides of a thin part, see :func:`other_sheet`): each layer holds
+#: at least ``SHEET_MIN`` points (the point in its own), the layers' own planes are
+#: parallel (``|cos|`` at least ``SHEET_PARALLEL``), and across the point's layer's
+#: plane they stand apart by ``SHEET_GAP`` spacings (the distance along the
+#: least-squares plane of the quarter-nearest of them) and by ``SHEET_CLEAR`` times
+#: their thickness (the RMS offset from their own planes). Then the candidates
+#: beyond the middle of that gap, on the other layer's side, do not enter the fan.
+SHEET_GAP = 0.4
+SHEET_MIN = 4
+SHEET_PARALLEL = 0.9
+SHEET_CLEAR = 4.0
+#: ... and the other layer surrounds the point: no angle between its points, seen
+#: from the point in its layer's plane, wider than this (radians; 108 degrees)
+SHEET_SURROUND = 0.6 * np.pi
+
+
+@njit(cache=True)
+def _cov_of(points, ids, m):
+    """Scatter entries (00, 01, 02, 11, 12, 22) of the points ``ids[:m]`` about their mean."""
+    cx = cy = cz = 0.0
+    for i in range(m):
+        q = ids[i]
+        cx += points[q, 0]
+        cy += points[q, 1]
+        cz += points[q, 2]
+    cx /= m
+    cy /= m
+    cz /= m
+    a00 = a01 = a02 = a11 = a12 = a22 = 0.0
+    for i in range(m):
+        q = ids[i]
+        dx = points[q, 0] - cx
+        dy = points[q, 1] - cy
+        dz = points[q, 2] - cz
+        a00 += dx * dx
+        a01 += dx * dy
+        a02 += dx * dz
+        a11 += dy * dy
+        a12 += dy * dz
+        a22 += dz * dz
+    return a00, a01, a02, a11, a12, a22
+
+
+@njit(cache=True)
+def other_sheet(points, p, pool, n_near, m_surround):
+    """(side, limit): the candidates q with ``side * (q - p) . n > limit`` lie on another
+    sheet than p (see :data:`SHEET_GAP`), ``n`` the normal returned last; side 0: p's
+    ``n_near`` nearest (``pool[:n_near]``) form one sheet. ``m_surround`` (at least
+    ``n_near``) candidates are looked at for the surround test of
+    :data:`SHEET_SURROUND`. Returns (side, limit, nx, ny, nz).
+
+    The least-squares plane of two layers tilts towards the side where the other
+    layer has more points, so p's layer is found apart: of the planes through p and
+    two of its nearest that has all the other points on one side, the one that
+    holds the most points (within ``SHEET_GAP / 4`` spacings, the spacing: the
+    median distance of the neighbours along the least-squares plane), refitted to
+    them; the rest is the other layer.
+    Only where the offsets from the least-squares plane span the gap at all.
+    """
+    m = n_near + 1
+    ids = np.empty(m, np.int64)
+    off = np.empty(m)
+    tan = np.empty(n_near)
+    nx, ny, nz = _plane_normal(points, p, pool, n_near)
+    lo = hi = 0.0
+    for i in range(n_near):
+        q = pool[i]
+        dx = points[q, 0] - points[p, 0]
+        dy = points[q, 1] - points[p, 1]
+        dz = points[q, 2] - points[p, 2]
+        o = dx * nx + dy * ny + dz * nz
+        tan[i] = np.sqrt(max(dx * dx + dy * dy + dz * dz - o * o, 0.0))
+        lo = min(lo, o)
+        hi = max(hi, o)
+    tan.sort()
+    spacing = tan[n_near // 2]
+    if spacing <= 0.0 or hi - lo < SHEET_GAP * tan[n_near // 4]:
+        return 0, 0.0, nx, ny, nz
+    tol = 0.25 * SHEET_GAP * spacing
+    n_try = n_near
+    best = 0
+    bx = by = bz = 0.0
+    for i in range(n_try):
+        qi = pool[i]
+        ex = points[qi, 0] - points[p, 0]
+        ey = points[qi, 1] - points[p, 1]
+        ez = points[qi, 2] - points[p, 2]
+        for j in range(i + 1, n_try):
+            qj = pool[j]
+            fx = points[qj, 0] - points[p, 0]
+            fy = points[qj, 1] - points[p, 1]
+            fz = points[qj, 2] - points[p, 2]
+            cx = ey * fz - ez * fy
+            cy = ez * fx - ex * fz
+            cz = ex * fy - ey * fx
+            cn = np.sqrt(cx * cx + cy * cy + cz * cz)
+            # a well-shaped triangle only (a sliver's plane is any plane)
+            if cn <= 0.25 * np.sqrt((ex * ex + ey * ey + ez * ez) * (fx * fx + fy * fy + fz * fz)):
+                continue
+            cx /= cn
+            cy /= cn
+            cz /= cn
+            c = 1
+            above = below = 0
+            for t in range(n_near):
+                q = pool[t]
+                o = ((points[q, 0] - points[p, 0]) * cx + (points[q, 1] - points[p, 1]) * cy
+                     + (points[q, 2] - points[p, 2]) * cz)
+                if abs(o) <= tol:
+                    c += 1
+                elif o > 0.0:
+                    above += 1
+                else:
+                    below += 1
+            # a layer: the points off the plane all on one side of it
+            if c > best and (above == 0 or below == 0):
+                best = c
+                bx, by, bz = cx, cy, cz
+    if best < SHEET_MIN or m - best < SHEET_MIN:
+        return 0, 0.0, nx, ny, nz
+    # p's layer (the plane's points) refitted; the others the other layer
+    n_own = 1
+    ids[0] = p
+    n_oth = 0
+    oth = np.empty(n_near, np.int64)
+    for t in range(n_near):
+        q = pool[t]
+        o = ((points[q, 0] - points[p, 0]) * bx + (points[q, 1] - points[p, 1]) * by
+             + (points[q, 2] - points[p, 2]) * bz)
+        if abs(o) <= tol:
+            ids[n_own] = q
+            n_own += 1
+        else:
+            oth[n_oth] = q
+            n_oth += 1
+    ax, ay, az = _smallest_eigvec(*_cov_of(points, ids, n_own))
+    cx, cy, cz = _smallest_eigvec(*_cov_of(points, oth, n_oth))
+    if abs(ax * cx + ay * cy + az * cz) < SHEET_PARALLEL:
+        return 0, 0.0, nx, ny, nz
+    # across p's layer's plane: the other layer on one side, clear of p's
+    mean_own = 0.0
+    for i in range(n_own):
+        q = ids[i]
+        off[i] = ((points[q, 0] - points[p, 0]) * ax + (points[q, 1] - points[p, 1]) * ay
+                  + (points[q, 2] - points[p, 2]) * az)
+        mean_own += off[i]
+    mean_own /= n_own
+    mean_oth = 0.0
+    for i in range(n_oth):
+        q = oth[i]
+        off[n_own + i] = ((points[q, 0] - points[p, 0]) * ax + (points[q, 1] - points[p, 1]) * ay
+                          + (points[q, 2] - points[p, 2]) * az)
+        mean_oth += off[n_own + i]
+    mean_oth /= n_oth
+    side = 1 if mean_oth > mean_own else -1
+    edge_own = -np.inf
+    spread = 0.0
+    for i in range(n_own):
+        edge_own = max(edge_own, side * off[i])
+        spread += (off[i] - mean_own) ** 2
+    edge_oth = np.inf
+    for i in range(n_own, m):
+        edge_oth = min(edge_oth, side * off[i])
+        spread += (off[i] - mean_oth) ** 2
+    apart = edge_oth - edge_own
+    if apart < SHEET_GAP * tan[n_near // 4] or apart < SHEET_CLEAR * np.sqrt(spread / m):
+        return 0, 0.0, nx, ny, nz
+    limit = edge_own + 0.5 * apart
+    # the other layer lies over p: its points (within half the gap of its mean
+    # offset) among the first ``m_surround`` candidates surround p in p's plane (at
+    # a sharp corner the first rows of the other faces may lie in a plane parallel
+    # to p's face, but to one side of p)
+    ux, uy, uz, vx, vy, vz = _plane_basis(ax, ay, az)
+    ang = np.empty(m_surround)
+    n_ang = 0
+    for i in range(m_surround):
+        q = pool[i]
+        o = ((points[q, 0] - points[p, 0]) * ax + (points[q, 1] - points[p, 1]) * ay
+             + (points[q, 2] - points[p, 2]) * az)
+        if side * o > limit and abs(o - mean_oth) <= 0.5 * apart:  # in the other layer
+            ang[n_ang] = _angle(points, p, q, ux, uy, uz, vx, vy, vz)
+            n_ang += 1
+    srt = np.sort(ang[:n_ang])
+    widest = srt[0] + TWO_PI - srt[n_ang - 1]
+    for i in range(1, n_ang):
+        widest = max(widest, srt[i] - srt[i - 1])
+    if widest > SHEET_SURROUND:
+        return 0, 0.0, nx, ny, nz
+    return side, limit, ax, ay, az
+
+
+@njit(cache=True)
+def drop_other_sheet(points, p, pool, dist, m, side, limit, nx, ny, nz):
+    """Remove from ``pool[:m]`` (and ``dist``, if it has entries) the candidates beyond
+    ``limit`` on ``side`` (see :func:`other_sheet`), keeping the order of the others.
+    Returns how many are left."""
+    c = 0
+    for i in range(m):
+        q = pool[i]
+        o = ((points[q, 0] - points[p, 0]) * nx + (points[q, 1] - points[p, 1]) * ny
+             + (points[q, 2] - points[p, 2]) * nz)
+        if side * o > limit:
+            continue
+        pool[c] = q
+        if dist.shape[0] > i:
+            dist[c] = dist[i]
+        c += 1
+    return c
+
+
 @njit(cache=True)
 def _point_normal(points, p, pool, m_pool, n_normal, nx, ny, nz):
     """(normal stored for p, no plane): least-squares plane of its n_normal nearest,
@@ -550,8 +761,8 @@ def reach_limit(points, p, pool, m, k, lim):
 
 @njit(cache=True, parallel=True)
 def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, max_gap,
-                   rule, rotate, n_normal, n_sort, max_block, n_chunks, reach, ring_tab, counts,
-                   status, normals, spacing, no_plane):
+                   rule, rotate, n_normal, n_sort, max_block, n_chunks, reach, sheets, ring_tab,
+                   counts, status, normals, spacing, no_plane):
     """Stage 1: fans of the points of cells ``c_lo:c_hi``, neighbours from the grid.
 
     ``points`` are in cell order (see :mod:`._grid_kernels`). Each point's
@@ -566,6 +777,8 @@ def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, ma
     (see :func:`local_spacing` and :func:`reach_limit`). ``spacing[p]``
     receives p's local spacing (points sent to stage 2 get theirs there);
     ``no_plane[p]``, whether p's normal is its fan's plane (:func:`_point_normal`).
+    With ``sheets``, the candidates on another sheet than p's (:func:`other_sheet`)
+    are left out of its pool.
     """
     n_cells = c_hi - c_lo
     n_chunks = max(1, min(n_cells, n_chunks))
@@ -619,6 +832,28 @@ def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, ma
                     # every point within the limit is certified: the pool is complete
                     final = m_lim >= cap or r * r >= lim2
                 m_pool = min(cap, m_lim)
+                side = 0
+                if sheets:
+                    side, limit, sx, sy, sz = other_sheet(points, p, pool, n_normal,
+                                                          min(m_cert, 3 * n_normal))
+                if side != 0:
+                    # the whole pool in order of distance, then the other sheet out
+                    G.sort_pool(pool, dist, m_cert)
+                    n_sorted = m_cert
+                    m_near = drop_other_sheet(points, p, pool, dist, m_pool, side, limit,
+                                              sx, sy, sz)
+                    m_rest = drop_other_sheet(points, p, pool[m_pool:], dist[m_pool:],
+                                              m_cert - m_pool, side, limit, sx, sy, sz)
+                    for a in range(m_rest):
+                        pool[m_near + a] = pool[m_pool + a]
+                        dist[m_near + a] = dist[m_pool + a]
+                    m_pool = m_near
+                    m_cert = m_near + m_rest
+                    n_sorted = m_cert
+                    if m_pool < k:
+                        status[p] = STATUS_RETRY
+                        counts[p] = 0
+                        continue
                 cnt, s, nx, ny, nz, flat = _fan_one(
                     points, p, pool, dist, n_sorted, m_cert, m_pool, k, max_gap, rule, rotate,
                     final, n_normal, ang, scratch, ring_out,
@@ -634,14 +869,14 @@ def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, ma
 
 
 @njit(cache=True, parallel=True)
-def fans_from_pool(points, which, pools, k, max_gap, rule, rotate, n_normal, reach, ring_tab,
-                   counts, status, normals, spacing, no_plane):
+def fans_from_pool(points, which, pools, k, max_gap, rule, rotate, n_normal, reach, sheets,
+                   ring_tab, counts, status, normals, spacing, no_plane):
     """Stage 2: fans of the points ``which`` from exact candidate pools.
 
     ``pools[i]`` are the nearest neighbours of ``which[i]`` (self first),
     in order of distance, padded with a negative index. ``reach`` and
     ``spacing`` as in :func:`fans_from_grid` (with ``reach`` 0 the pools
-    are taken as they are and ``spacing`` is left alone).
+    are taken as they are and ``spacing`` is left alone); ``sheets`` too.
     """
     width = pools.shape[1]
     n = which.shape[0]
@@ -662,6 +897,12 @@ def fans_from_pool(points, which, pools, k, max_gap, rule, rotate, n_normal, rea
                 if q >= 0 and q != p:
                     pool[m] = q
                     m += 1
+            if sheets and m > n_normal:
+                side, limit, sx, sy, sz = other_sheet(points, p, pool, n_normal,
+                                                      min(m, 3 * n_normal))
+                if side != 0:
+                    m = drop_other_sheet(points, p, pool, pool_dist[:0], m, side, limit,
+                                         sx, sy, sz)
             if reach > 0.0 and m >= k:
                 spacing[p] = local_spacing(points, p, pool, k, ang, scratch)
                 m = reach_limit(points, p, pool, m, k, reach * spacing[p])
