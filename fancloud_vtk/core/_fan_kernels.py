@@ -368,13 +368,12 @@ def _plane_normal(points, p, pool, k):
 @njit(cache=True)
 def _covariance(points, p, pool, k):
     """The six entries (00, 01, 02, 11, 12, 22) of the scatter matrix of p and its k
-    nearest candidates about their centroid."""
-    cnt = k + 1
-    cx = points[p, 0]
-    cy = points[p, 1]
-    cz = points[p, 2]
-    for i in range(k):
-        q = pool[i]
+    nearest candidates ``pool[:k]`` about their centroid (p < 0: of ``pool[:k]`` alone)."""
+    first = -1 if p >= 0 else 0
+    cnt = k - first
+    cx = cy = cz = 0.0
+    for i in range(first, k):
+        q = p if i < 0 else pool[i]
         cx += points[q, 0]
         cy += points[q, 1]
         cz += points[q, 2]
@@ -382,7 +381,7 @@ def _covariance(points, p, pool, k):
     cy /= cnt
     cz /= cnt
     a00 = a01 = a02 = a11 = a12 = a22 = 0.0
-    for i in range(-1, k):
+    for i in range(first, k):
         q = p if i < 0 else pool[i]
         dx = points[q, 0] - cx
         dy = points[q, 1] - cy
@@ -411,33 +410,6 @@ SHEET_CLEAR = 4.0
 #: ... and the other layer surrounds the point: no angle between its points, seen
 #: from the point in its layer's plane, wider than this (radians; 108 degrees)
 SHEET_SURROUND = 0.6 * np.pi
-
-
-@njit(cache=True)
-def _cov_of(points, ids, m):
-    """Scatter entries (00, 01, 02, 11, 12, 22) of the points ``ids[:m]`` about their mean."""
-    cx = cy = cz = 0.0
-    for i in range(m):
-        q = ids[i]
-        cx += points[q, 0]
-        cy += points[q, 1]
-        cz += points[q, 2]
-    cx /= m
-    cy /= m
-    cz /= m
-    a00 = a01 = a02 = a11 = a12 = a22 = 0.0
-    for i in range(m):
-        q = ids[i]
-        dx = points[q, 0] - cx
-        dy = points[q, 1] - cy
-        dz = points[q, 2] - cz
-        a00 += dx * dx
-        a01 += dx * dy
-        a02 += dx * dz
-        a11 += dy * dy
-        a12 += dy * dz
-        a22 += dz * dz
-    return a00, a01, a02, a11, a12, a22
 
 
 @njit(cache=True)
@@ -532,8 +504,8 @@ def other_sheet(points, p, pool, n_near, m_surround):
         else:
             oth[n_oth] = q
             n_oth += 1
-    ax, ay, az = _smallest_eigvec(*_cov_of(points, ids, n_own))
-    cx, cy, cz = _smallest_eigvec(*_cov_of(points, oth, n_oth))
+    ax, ay, az = _smallest_eigvec(*_covariance(points, -1, ids, n_own))
+    cx, cy, cz = _smallest_eigvec(*_covariance(points, -1, oth, n_oth))
     if abs(ax * cx + ay * cy + az * cz) < SHEET_PARALLEL:
         return 0, 0.0, nx, ny, nz
     # across p's layer's plane: the other layer on one side, clear of p's
