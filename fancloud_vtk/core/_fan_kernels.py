@@ -37,7 +37,7 @@ import numpy as np
 from numba import njit, prange
 
 from . import _grid_kernels as G
-from ._geometry_kernels import TWO_PI, atan2_2pi
+from ._geometry_kernels import TWO_PI, atan2_2pi, dist2, triangle_cross
 
 RULE_COVER = 0
 RULE_PAPER = 1
@@ -448,25 +448,16 @@ def other_sheet(points, p, pool, n_near, m_surround):
     if spacing <= 0.0 or hi - lo < SHEET_GAP * tan[n_near // 4]:
         return 0, 0.0, nx, ny, nz
     tol = 0.25 * SHEET_GAP * spacing
-    n_try = n_near
     best = 0
     bx = by = bz = 0.0
-    for i in range(n_try):
+    for i in range(n_near):
         qi = pool[i]
-        ex = points[qi, 0] - points[p, 0]
-        ey = points[qi, 1] - points[p, 1]
-        ez = points[qi, 2] - points[p, 2]
-        for j in range(i + 1, n_try):
+        for j in range(i + 1, n_near):
             qj = pool[j]
-            fx = points[qj, 0] - points[p, 0]
-            fy = points[qj, 1] - points[p, 1]
-            fz = points[qj, 2] - points[p, 2]
-            cx = ey * fz - ez * fy
-            cy = ez * fx - ex * fz
-            cz = ex * fy - ey * fx
+            cx, cy, cz = triangle_cross(points, p, qi, qj)
             cn = np.sqrt(cx * cx + cy * cy + cz * cz)
             # a well-shaped triangle only (a sliver's plane is any plane)
-            if cn <= 0.25 * np.sqrt((ex * ex + ey * ey + ez * ez) * (fx * fx + fy * fy + fz * fz)):
+            if cn <= 0.25 * np.sqrt(dist2(points, qi, p) * dist2(points, qj, p)):
                 continue
             cx /= cn
             cy /= cn
