@@ -93,3 +93,44 @@ def test_every_scanned_point_but_the_stray_ones_is_used(name):
     assert np.flatnonzero(~used & ~stray).size == 0
     assert len(self_intersecting_pairs(mesh.points, mesh.triangles)) == 0
     assert mesh.stats["non_manifold_edges"] == 0 and mesh.stats["non_manifold_vertices"] == 0
+
+
+def _model_normals(entry):
+    """Area-weighted vertex normals of the entry's own (consistently oriented) mesh."""
+    p, t = entry.ref_points, entry.ref_triangles
+    face = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
+    out = np.zeros_like(p)
+    for j in range(3):
+        np.add.at(out, t[:, j], face)
+    return out
+
+
+def test_the_cows_normals_are_oriented_again_by_the_triangles_the_fans_share():
+    """On the cow, the propagation of build_fans leaves about 300 of the 2,903 normals
+    pointing inward (an ear's side, the lower legs, the tail: thin parts, where the
+    neighbours of a point lie on both sides). The mesh orients them again by the
+    triangles the fans share: its normals disagree with the model's at far fewer points,
+    and its triangles run with its normals."""
+    entry = ENTRIES["cow"]
+    fc, mesh = _mesh(entry)
+    model = _model_normals(entry)
+    from scipy.spatial import cKDTree
+
+    _, j = cKDTree(entry.ref_points).query(fc.points)
+    against_fans = int((np.einsum("ij,ij->i", fc.normals, model[j]) < 0).sum())
+    against_mesh = int((np.einsum("ij,ij->i", mesh.normals, model[j]) < 0).sum())
+    assert mesh.stats["normals_flipped"] > 100
+    assert against_fans > 250
+    assert against_mesh < 0.7 * against_fans
+    # the triangles run with the new normals more often than with the fans' (measured:
+    # 96% of the triangles against 92%; the rest lie where the normals of a thin part are
+    # poor, across it)
+    t = mesh.triangles
+    p = mesh.points
+    face = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
+
+    def along(normals):
+        return (np.einsum("ij,ij->i", face, normals[t].sum(axis=1)) > 0).mean()
+
+    assert along(mesh.normals) > 0.95
+    assert along(mesh.normals) > along(fc.normals) + 0.03

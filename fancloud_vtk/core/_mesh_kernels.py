@@ -835,7 +835,8 @@ def distinct_triangles(offsets, ring, is_open):
     Every triangle is emitted once, by the smallest point whose fan has it,
     in fan order (the order of first appearance, fan by fan); a tie in the
     orientation vote keeps that fan's orientation. Returns (tri, count,
-    n_fan_triangles).
+    n_fan_triangles, n_mixed): ``n_mixed`` counts the triangles that two
+    fans run opposite ways round (their normals disagree).
     """
     n = offsets.shape[0] - 1
     per = np.zeros(n + 1, np.int64)
@@ -856,12 +857,15 @@ def distinct_triangles(offsets, ring, is_open):
         per[p + 1] += per[p]
     tri = np.empty((per[n], 3), np.int64)
     count = np.empty(per[n], np.int64)
+    mixed = np.zeros(n, np.int64)
     for p in prange(n):
         t = per[p]
         for j in range(n_fan[p]):
             a, b, cnt, vote, owned = _fan_triangle(offsets, ring, is_open, p, j)
             if not owned:
                 continue
+            if abs(vote) != cnt:
+                mixed[p] += 1
             tri[t, 0] = p
             if vote >= 0:
                 tri[t, 1] = a
@@ -871,7 +875,7 @@ def distinct_triangles(offsets, ring, is_open):
                 tri[t, 2] = a
             count[t] = cnt
             t += 1
-    return tri, count, n_fan.sum()
+    return tri, count, n_fan.sum(), mixed.sum()
 
 
 @njit(cache=True, parallel=True)

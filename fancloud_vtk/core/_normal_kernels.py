@@ -14,6 +14,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from ._heap_kernels import heap_of, heap_update, sift_down
+from ._mesh_kernels import _fan_has
+
 
 @njit(cache=True)
 def transpose_rings(ring_tab, counts):
@@ -350,3 +353,141 @@ def flip_fans(normals, ring_tab, counts, flip):
             t = ring_tab[p, j]
             ring_tab[p, j] = ring_tab[p, m - 1 - j]
             ring_tab[p, m - 1 - j] = t
+
+
+# -- orientation by the triangles that neighbouring fans share ---------------
+
+#: weight of one shared fan triangle (run the same way round, or not) against
+#: the agreement of two normals (at most ``SHARED_WEAK``): a point is oriented
+#: by its normals only where no fan triangle decides
+SHARED_WEAK = 0.01
+
+
+@njit(cache=True, parallel=True)
+def shared_triangle_votes(offsets, ring, is_open):
+    """Per ring entry ``p -> q`` (CSR ``offsets``, ``ring``): the fan triangles
+    of p on the edge pq that q's fan has too, +1 for each that q's fan runs the
+    same way round as p's, -1 for each it runs the other way round."""
+    n = offsets.shape[0] - 1
+    vote = np.zeros(ring.shape[0], np.int64)
+    for p in prange(n):
+        r0 = offsets[p]
+        m = offsets[p + 1] - r0
+        if m < 2 or (m == 2 and not is_open[p]):
+            continue
+        last = m - 1 if is_open[p] else m
+        for j in range(last):
+            a = ring[r0 + j]
+            b = ring[r0 + (j + 1) % m]
+            # (p, a, b) is (a, b, p) in a's fan and (b, p, a) in b's, the same way round
+            vote[r0 + j] += _fan_has(offsets, ring, is_open, a, b, p)
+            vote[r0 + (j + 1) % m] += _fan_has(offsets, ring, is_open, b, p, a)
+    return vote
+
+
+@njit(cache=True)
+def _pop(heap, hpos, key, size):
+    x = heap[0]
+    size -= 1
+    if size > 0:
+        heap[0] = heap[size]
+        hpos[heap[0]] = 0
+        sift_down(heap, hpos, key, 0, size)
+    hpos[x] = -1
+    return x
+
+
+@njit(cache=True, parallel=True)
+def agreement_weights(points, normals, offsets, ring, weak):
+    """Per ring entry ``p -> q``: ``weak * n_p . n_q / (1 + 10 s)``, with ``s`` the
+    squared slope of the edge against both normals (an edge across a thin part runs
+    along them, and its normals' agreement says little)."""
+    n = offsets.shape[0] - 1
+    weight = np.empty(ring.shape[0])
+    for p in prange(n):
+        for s in range(offsets[p], offsets[p + 1]):
+            q = ring[s]
+            ex = points[q, 0] - points[p, 0]
+            ey = points[q, 1] - points[p, 1]
+            ez = points[q, 2] - points[p, 2]
+            ee = ex * ex + ey * ey + ez * ez
+            dp = ex * normals[p, 0] + ey * normals[p, 1] + ez * normals[p, 2]
+            dq = ex * normals[q, 0] + ey * normals[q, 1] + ez * normals[q, 2]
+            slope = (dp * dp + dq * dq) / ee if ee > 0.0 else 0.0
+            agree = normals[p, 0] * normals[q, 0] + normals[p, 1] * normals[q, 1] \
+                + normals[p, 2] * normals[q, 2]
+            weight[s] = weak * agree / (1.0 + 10.0 * slope)
+    return weight
+
+
+@njit(cache=True)
+def orient_by_evidence(offsets, nbr, weight):
+    """Signs for the normals from weighted sign relations; return (flipped, component,
+    n_comp).
+
+    Each entry ``p -> q`` of the CSR graph (``offsets``, ``nbr``) says with
+    ``weight`` how strongly p and q keep their normals' relative sign (> 0) or
+    want it reversed (< 0). The points are decided one at a time, always the
+    undecided point with the largest evidence: the sum, over its decided
+    neighbours (entries in either direction), of the weight times the
+    neighbour's sign (the greedy order of MeshLib's orientation of local
+    triangulations). A point with no evidence starts a new component with its
+    sign as it is (the lowest such point first).
+    ``flipped[i]``: normal i must be negated; ``component[i]``: its connected
+    component of the graph.
+    """
+    n = offsets.shape[0] - 1
+    n_e = nbr.shape[0]
+    owner = np.empty(n_e, np.int64)
+    for p in range(n):
+        for s in range(offsets[p], offsets[p + 1]):
+            owner[s] = p
+    # in-edges: for each q, the entries that point at it
+    t_off = np.zeros(n + 1, np.int64)
+    for s in range(n_e):
+        t_off[nbr[s] + 1] += 1
+    for i in range(n):
+        t_off[i + 1] += t_off[i]
+    fill = t_off[:-1].copy()
+    t_slot = np.empty(n_e, np.int64)
+    for s in range(n_e):
+        q = nbr[s]
+        t_slot[fill[q]] = s
+        fill[q] += 1
+    sign = np.zeros(n, np.int64)
+    component = np.full(n, -1, np.int64)
+    evidence = np.zeros(n)
+    key = np.zeros(n)  # -|evidence|: the min-heap gives the strongest first
+    heap, hpos = heap_of(key, np.ones(n, np.bool_))
+    size = n
+    n_comp = 0
+    while size > 0:
+        v = _pop(heap, hpos, key, size)
+        size -= 1
+        sign[v] = -1 if evidence[v] < 0.0 else 1
+        comp = -1
+        for s in range(offsets[v], offsets[v + 1]):
+            if sign[nbr[s]] != 0:
+                comp = component[nbr[s]]
+                break
+        if comp < 0:
+            for i in range(t_off[v], t_off[v + 1]):
+                if sign[owner[t_slot[i]]] != 0:
+                    comp = component[owner[t_slot[i]]]
+                    break
+        if comp < 0:
+            comp = n_comp
+            n_comp += 1
+        component[v] = comp
+        for s in range(offsets[v], offsets[v + 1]):
+            u = nbr[s]
+            if sign[u] == 0 and weight[s] != 0.0:
+                evidence[u] += weight[s] * sign[v]
+                heap_update(heap, hpos, key, u, -abs(evidence[u]), size)
+        for i in range(t_off[v], t_off[v + 1]):
+            s = t_slot[i]
+            u = owner[s]
+            if sign[u] == 0 and weight[s] != 0.0:
+                evidence[u] += weight[s] * sign[v]
+                heap_update(heap, hpos, key, u, -abs(evidence[u]), size)
+    return sign < 0, component, n_comp

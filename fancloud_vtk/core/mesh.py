@@ -14,6 +14,10 @@ step before them and a last one after:
 1. **Distinct triangles.** All fan triangles ``(p, q_j, q_{j+1})``; the same
    three points are counted once, with the number of fans that contain the
    triangle (its *count*) and the orientation most of those fans give it.
+   Where two fans run a shared triangle opposite ways round (normals the
+   propagation of :func:`~fancloud_vtk.build_fans` got wrong across a thin
+   part), the normals are first oriented again by the triangles the fans
+   share (``normals_flipped``; docs/mesh.md, section 2b).
 2. **Superfluous triangles out.** Where a quadrilateral is covered by both
    of its diagonals' triangulations (three or four fan triangles), one
    triangulation stays: a complete one over an incomplete one, then the one
@@ -41,7 +45,8 @@ step before them and a last one after:
    triangle are split into it (1 -> 3).
 5. **Self-intersections removed** (``remove_self_intersections``): of
    each intersecting pair the worse triangle goes, the holes are closed
-   again, three rounds; what still intersects then goes for good.
+   again (a refill that crosses more than it repairs is undone), three
+   rounds; what still intersects then goes for good.
 
 The counts of every stage and the checks of the result (boundary edges,
 holes, non-manifold edges and vertices, inconsistent edges,
@@ -61,6 +66,7 @@ from . import _csr_kernels as CsrK
 from . import _edge_kernels as EdgeK
 from . import _fill_kernels as FillK
 from . import _mesh_kernels as MK
+from . import _normal_kernels as NK
 from . import _ring_kernels as RingK
 from .model import FanCloud
 
@@ -92,7 +98,8 @@ class TriangleMesh:
     triangles : numpy.ndarray
         ``(m, 3)`` int64, counter-clockwise around the surface normal.
     normals : numpy.ndarray
-        ``(n, 3)`` unit point normals of the fan cloud.
+        ``(n, 3)`` unit point normals of the fan cloud, those the mesh
+        stage orients again negated (``stats['normals_flipped']``).
     point_data : dict
         The fan cloud's passthrough point arrays.
     stats : dict
@@ -199,6 +206,8 @@ def fan_cloud_to_mesh(
     TriangleMesh
         ``stats`` holds ``fan_triangles`` (all fan triangles), ``distinct``,
         ``after_superfluous``, ``uncontested`` (accepted before growing),
+        ``normals_flipped`` (normals oriented again where fans run a shared
+        triangle opposite ways round: docs/mesh.md, section 2b),
         ``grown``, ``final`` (triangle counts of the
         stages), ``pinch_cut`` (triangles cut off at pinched vertices after
         growing), ``holes_closed``, ``points_inserted`` (unused points put
@@ -279,7 +288,19 @@ def fan_cloud_to_mesh(
         timings["delaunay_rings"] = time.perf_counter() - t0
     else:
         fans = fancloud
-    tri, count, n_fan = MK.distinct_triangles(fans.offsets, fans.ring, fans.open)
+    flip = np.zeros(n, bool)
+    tri, count, n_fan, n_mixed = MK.distinct_triangles(fans.offsets, fans.ring, fans.open)
+    if rings == "delaunay" and n_mixed:
+        # fans that run a shared triangle opposite ways: orient the normals again by the
+        # triangles the fans share (section 2b of docs/mesh.md)
+        t1 = time.perf_counter()
+        flip = _shared_orientation(fans, fancloud)
+        if flip.any():
+            fans = _flipped(fans, flip)
+            fancloud = _flipped(fancloud, flip)
+            tri, count, n_fan, _ = MK.distinct_triangles(fans.offsets, fans.ring, fans.open)
+        timings["orientation"] = time.perf_counter() - t1
+    stats["normals_flipped"] = int(flip.sum())
     stats["fan_triangles"] = int(n_fan)
     stats["distinct"] = len(tri)
     timings["distinct"] = time.perf_counter() - t0
@@ -388,16 +409,20 @@ def fan_cloud_to_mesh(
     timings["checks"] = time.perf_counter() - t0
     stats["timings"] = timings
     _warn_if_doubtful(fancloud, triangles, stats, holes=close_holes)
-    return _mesh_of(source, spatial, triangles, stats, outliers)
+    return _mesh_of(source, spatial, triangles, stats, outliers, flip)
 
 
-def _mesh_of(source: FanCloud, spatial, triangles, stats, outliers) -> TriangleMesh:
+def _mesh_of(source: FanCloud, spatial, triangles, stats, outliers, flip=None) -> TriangleMesh:
     """The mesh of ``triangles`` (indices in the spatial order ``spatial``) on a copy of
-    the source fan cloud's points, normals and point data."""
+    the source fan cloud's points, normals and point data; the normals ``flip`` (in the
+    spatial order) negates are negated."""
+    normals = source.normals.copy()
+    if flip is not None and flip.any():
+        normals[spatial[flip]] *= -1.0
     return TriangleMesh(
         source.points.copy(),
         np.ascontiguousarray(spatial[triangles], dtype=np.int64),
-        source.normals.copy(),
+        normals,
         {k: v.copy() for k, v in source.point_data.items()},
         stats,
         np.sort(spatial[outliers]),
@@ -427,8 +452,8 @@ def _manifold_of_rings(source, spatial, fancloud, tri, stats, timings, self_inte
     t0 = time.perf_counter()
     for key in ("after_superfluous", "uncontested", "grown", "final"):
         stats[key] = len(tri)
-    for key in ("pinch_cut", "holes_closed", "points_inserted", "self_intersections_removed",
-                "outliers"):
+    for key in ("normals_flipped", "pinch_cut", "holes_closed", "points_inserted",
+                "self_intersections_removed", "outliers"):
         stats[key] = 0
     stats.update(mesh_statistics(fancloud.points, tri, self_intersections=self_intersections))
     timings["checks"] = time.perf_counter() - t0
@@ -439,6 +464,52 @@ def _manifold_of_rings(source, spatial, fancloud, tri, stats, timings, self_inte
             f"are; {stats['self_intersections']} pairs of its triangles intersect",
             DoubtfulMeshWarning, stacklevel=3)
     return _mesh_of(source, spatial, tri, stats, np.empty(0, np.int64))
+
+
+def _shared_orientation(fans: FanCloud, fancloud: FanCloud) -> np.ndarray:
+    """The normals to negate (a mask) so that neighbouring fans run the triangles they
+    share the same way round (docs/mesh.md, section 2b).
+
+    ``fans``: the Delaunay rings; ``fancloud``: the fan cloud's own fans (the same
+    points and normals), called where two fans run a shared triangle opposite ways
+    round. The points are oriented again by
+    :func:`~._normal_kernels.orient_by_evidence`: every shared triangle a vote of 1,
+    and the fan neighbours' normals a weak vote where no triangle decides; in each
+    connected component the orientation most of it had (by area) is kept.
+    """
+    n = fans.n_points
+    vote = NK.shared_triangle_votes(fans.offsets, fans.ring, fans.open)
+    # one graph: the Delaunay rings with their votes, the fans with their normals' agreement
+    weak = NK.agreement_weights(fancloud.points, fancloud.normals, fancloud.offsets,
+                                fancloud.ring, NK.SHARED_WEAK)
+    owner = np.r_[np.repeat(np.arange(n), np.diff(fans.offsets)),
+                  np.repeat(np.arange(n), np.diff(fancloud.offsets))]
+    order = np.argsort(owner, kind="stable")
+    offsets = np.zeros(n + 1, np.int64)
+    np.cumsum(np.bincount(owner, minlength=n), out=offsets[1:])
+    nbr = np.r_[fans.ring, fancloud.ring][order]
+    weight = np.r_[vote.astype(np.float64), weak][order]
+    flipped, comp, n_comp = NK.orient_by_evidence(offsets, nbr, weight)
+    sizes = np.diff(fans.offsets)
+    src = np.repeat(np.arange(n), sizes)
+    d2 = np.einsum("ij,ij->i", fans.points[fans.ring] - fans.points[src],
+                   fans.points[fans.ring] - fans.points[src])
+    area = np.bincount(src, d2, n) / np.maximum(sizes, 1)
+    against = np.bincount(comp, np.where(flipped, area, 0.0), n_comp)
+    total = np.bincount(comp, area, n_comp)
+    return flipped ^ (2.0 * against > total)[comp]
+
+
+def _flipped(fc: FanCloud, flip: np.ndarray) -> FanCloud:
+    """``fc`` with the normals of ``flip`` negated and their rings reversed (an open
+    fan keeps its gap, between its last and first neighbour)."""
+    sizes = np.diff(fc.offsets)
+    src = np.repeat(np.arange(fc.n_points), sizes)
+    pos = np.arange(len(fc.ring))
+    rev = fc.offsets[src] + fc.offsets[src + 1] - 1 - pos
+    ring = fc.ring[np.where(flip[src], rev, pos)]
+    normals = np.where(flip[:, None], -fc.normals, fc.normals)
+    return FanCloud(fc.points, fc.offsets, ring, normals, fc.open, fc.rotated)
 
 
 def _spatial_order(fc: FanCloud):
@@ -721,8 +792,14 @@ def _remove_intersections(fc: FanCloud, triangles, refill, rounds=3):
 
     n = fc.n_points
     removed = 0
+    before = None  # (triangles before the last refill, the pairs they had)
     for r in range(rounds + 1):
         pairs = self_intersecting_pairs(fc.points, triangles)
+        if before is not None and len(pairs) > before[1]:
+            # the refill crossed more than it repaired (a widened hole clipped across
+            # the surface): back to the mesh before it; the last filling takes its holes
+            triangles = before[0]
+            break
         if len(pairs) == 0:
             break
         # of each pair the worse triangle goes: the one in more pairs, then the larger
@@ -741,6 +818,7 @@ def _remove_intersections(fc: FanCloud, triangles, refill, rounds=3):
         triangles = triangles[keep]
         if r == rounds or refill is None:
             break
+        before = (triangles, len(pairs))
         triangles = refill(triangles)
     return triangles, removed
 
