@@ -75,9 +75,10 @@ def _print_mesh_summary(mesh, elapsed, path=None, extra=()) -> None:
                        ("after_superfluous", "after superfluous removal"),
                        ("grown", "grown 2-manifold"), ("final", "final (holes closed)")):
         rows.append((label, f"{s[key]:,} ({s[key] / n:.3f} per point)"))
-    for key in ("holes_closed", "points_inserted", "self_intersections_removed", "boundary_edges",
-                "holes", "non_manifold_edges", "non_manifold_vertices", "inconsistent_edges",
-                "self_intersections", "unused_points", "outliers", "euler_characteristic"):
+    for key in ("normals_flipped", "holes_closed", "points_inserted", "self_intersections_removed",
+                "boundary_edges", "holes", "non_manifold_edges", "non_manifold_vertices",
+                "inconsistent_edges", "self_intersections", "unused_points", "outliers",
+                "euler_characteristic"):
         if key in s:  # (a mesh read back from a file may lack the newer counts)
             rows.append((key.replace("_", " "), f"{s[key]:,}"))
     rows.append(("time", f"{elapsed:.2f} s"))
