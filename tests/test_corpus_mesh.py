@@ -106,27 +106,25 @@ def _model_normals(entry):
 
 
 def test_the_cows_normals_are_oriented_again_by_the_triangles_the_fans_share():
-    """On the cow, the propagation alone leaves 317 of the 2,903 normals pointing
-    inward (an ear's side, the lower legs, the tail: thin parts, where the neighbours of
-    a point lie on both sides). build_fans orients them again by the triangles the fans
-    share, and the mesh checks its own rings the same way: the normals disagree with the
-    model's at far fewer points, and the triangles run with them."""
-    from scipy.spatial import cKDTree
-
+    """On the cow, the propagation of build_fans leaves about 300 of the 2,903 normals
+    pointing inward (an ear's side, the lower legs, the tail: thin parts, where the
+    neighbours of a point lie on both sides). The mesh orients them again by the
+    triangles the fans share: its normals disagree with the model's at far fewer points,
+    and its triangles run with its normals."""
     entry = ENTRIES["cow"]
     fc, mesh = _mesh(entry)
     model = _model_normals(entry)
+    from scipy.spatial import cKDTree
+
     _, j = cKDTree(entry.ref_points).query(fc.points)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        alone = build_fans(entry.points, orient=True)
-    assert fc.info["normals_oriented_again"] > 100
     against_fans = int((np.einsum("ij,ij->i", fc.normals, model[j]) < 0).sum())
     against_mesh = int((np.einsum("ij,ij->i", mesh.normals, model[j]) < 0).sum())
-    assert against_fans < 200 and against_mesh < 200  # the propagation alone: 317
-    assert np.array_equal(alone.normals, fc.normals)  # deterministic
-    # the triangles run with the normals (measured: 96% of them; the propagation alone
-    # gave 92%; the rest lie where the normals of a thin part are poor, across it)
+    assert mesh.stats["normals_flipped"] > 100
+    assert against_fans > 250
+    assert against_mesh < 0.7 * against_fans
+    # the triangles run with the new normals more often than with the fans' (measured:
+    # 96% of the triangles against 92%; the rest lie where the normals of a thin part are
+    # poor, across it)
     t = mesh.triangles
     p = mesh.points
     face = np.cross(p[t[:, 1]] - p[t[:, 0]], p[t[:, 2]] - p[t[:, 0]])
@@ -134,4 +132,5 @@ def test_the_cows_normals_are_oriented_again_by_the_triangles_the_fans_share():
     def along(normals):
         return (np.einsum("ij,ij->i", face, normals[t].sum(axis=1)) > 0).mean()
 
-    assert along(mesh.normals) > 0.95 and along(fc.normals) > 0.95
+    assert along(mesh.normals) > 0.95
+    assert along(mesh.normals) > along(fc.normals) + 0.03

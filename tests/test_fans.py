@@ -258,23 +258,3 @@ def test_scale_random_closed_surface(n):
     # outward: the surface is star-shaped around the origin
     assert np.mean(np.einsum("ij,ij->i", fc.normals, d) > 0) == 1.0
     assert fc.nbytes() / n <= 150
-
-
-def test_fans_that_run_a_shared_triangle_opposite_ways_are_found():
-    """The check before the orientation by shared triangles: none on a consistently
-    oriented sphere (and then nothing is oriented again), some as soon as a few normals
-    are negated with their rings reversed."""
-    from fancloud_vtk.core import _normal_kernels as NK
-
-    fc = build_fans(sphere(3000, seed=8))
-    assert fc.info["normals_oriented_again"] == 0
-    sizes = np.diff(fc.offsets)
-    tab = np.full((fc.n_points, sizes.max()), -1, np.int64)
-    for p in range(fc.n_points):
-        tab[p, : sizes[p]] = fc.ring[fc.offsets[p] : fc.offsets[p + 1]]
-    assert NK.opposite_triangles(tab, sizes, fc.open) == 0
-    flip = np.zeros(fc.n_points, bool)
-    flip[:30] = True
-    normals = fc.normals.copy()
-    NK.flip_fans(normals, tab, sizes, flip)
-    assert NK.opposite_triangles(tab, sizes, fc.open) > 30

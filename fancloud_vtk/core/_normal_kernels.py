@@ -385,36 +385,6 @@ def shared_triangle_votes(offsets, ring, is_open):
     return vote
 
 
-@njit(cache=True, parallel=True)
-def opposite_triangles(ring_tab, counts, is_open):
-    """How many fan triangles ``(p, a, b)`` (rings ``ring_tab[p, :counts[p]]``) a's fan
-    runs the other way round, as ``(a, p, b)``: 0 when neighbouring fans agree.
-    (Every two fans that share a triangle meet here, from one of them.)"""
-    n = counts.shape[0]
-    found = np.zeros(n, np.int64)
-    for p in prange(n):
-        m = counts[p]
-        if m < 2 or (m == 2 and not is_open[p]):
-            continue
-        last = m - 1 if is_open[p] else m
-        for j in range(last):
-            a = ring_tab[p, j]
-            b = ring_tab[p, j + 1] if j + 1 < m else ring_tab[p, 0]
-            ma = counts[a]
-            for i in range(ma):
-                if ring_tab[a, i] == p:
-                    if i + 1 < ma:
-                        nxt = ring_tab[a, i + 1]
-                    elif not is_open[a]:
-                        nxt = ring_tab[a, 0]
-                    else:
-                        nxt = -1
-                    if nxt == b:
-                        found[p] += 1
-                    break
-    return found.sum()
-
-
 @njit(cache=True)
 def _pop(heap, hpos, key, size):
     x = heap[0]

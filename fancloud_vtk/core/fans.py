@@ -14,8 +14,6 @@ from scipy.spatial import cKDTree
 
 from . import _fan_kernels as K
 from . import _grid_kernels as G
-from . import _normal_kernels as NK
-from . import _ring_kernels as RingK
 from ._normal_kernels import flip_fans, orient_by_propagation, outward_scores, transpose_rings
 from .model import FanCloud
 from .validation import (
@@ -242,14 +240,6 @@ def build_fans(
     else:
         flip = np.zeros(n, bool)
     flip_fans(normals_s, ring_tab, counts, flip)
-    n_again = 0
-    if given_normals is None and orient:
-        # fans that run a shared triangle opposite ways round: the propagation crossed a
-        # thin part; orient again by the triangles the fans share
-        again = _shared_flip(sp, normals_s, ring_tab, counts, status == K.STATUS_OPEN)
-        n_again = int(again.sum())
-        if n_again:
-            flip_fans(normals_s, ring_tab, counts, again)
     timings["orientation"] = time.perf_counter() - t2
 
     # back to the input order
@@ -273,7 +263,6 @@ def build_fans(
         "fans_rotated": int(rotated.sum()),
         "fans_wider_search": int(len(retry)),
         "duplicates_merged": 0,
-        "normals_oriented_again": n_again,
         "timings": timings,
     }
     return FanCloud(pts, offsets, ring, fan_normals, open_, rotated, pdata, info)
@@ -476,57 +465,6 @@ def _merge_duplicates(pts, k, given_normals, pdata, kwargs):
     )
     fc.info["duplicates_merged"] = n_dup
     return fc
-
-
-#: largest Delaunay ring of the orientation by shared triangles (as the mesh's)
-_DELAUNAY_RING = 16
-
-
-def _shared_flip(points, normals, ring_tab, counts, is_open) -> np.ndarray:
-    """The normals to negate (a mask) where fans run a shared triangle opposite ways
-    round: nothing (one pass over the fans) where none does; else
-    :func:`orient_by_shared_triangles` on the fans' local Delaunay rings."""
-    if NK.opposite_triangles(ring_tab, counts, is_open) == 0:
-        return np.zeros(len(points), bool)
-    offsets, ring = RingK.compact_rings(counts, ring_tab)
-    width = max(_DELAUNAY_RING, ring_tab.shape[1])
-    d_counts, table = RingK.delaunay_rings(points, normals, offsets, ring, is_open, width,
-                                           2 * numba.get_num_threads(), np.zeros(0, np.int64),
-                                           RingK.NOT_STEEP)
-    d_off, d_ring = RingK.compact_rings(d_counts, table)
-    return orient_by_shared_triangles(points, normals, is_open, d_off, d_ring, offsets, ring)
-
-
-def orient_by_shared_triangles(points, normals, is_open, d_offsets, d_ring, offsets, ring):
-    """The normals to negate (a mask) so that neighbouring fans run the triangles they
-    share the same way round (docs/fans.md, section 7b; docs/mesh.md, section 2b).
-
-    ``(d_offsets, d_ring)``: the points' local Delaunay rings (CSR), counter-clockwise
-    around ``normals``; ``(offsets, ring)``: their fans' rings. Every Delaunay ring
-    entry votes with the fan triangles on its edge that the neighbour's ring runs the
-    same way round (+1) or the other way (-1); the fan neighbours' normals add a weak
-    vote (:data:`~._normal_kernels.SHARED_WEAK`) where no triangle decides; the points
-    are then decided greedily (:func:`~._normal_kernels.orient_by_evidence`), and in
-    each connected component the orientation most of it had (by area) is kept.
-    """
-    n = len(points)
-    vote = NK.shared_triangle_votes(d_offsets, d_ring, is_open)
-    weak = NK.agreement_weights(points, normals, offsets, ring, NK.SHARED_WEAK)
-    owner = np.r_[np.repeat(np.arange(n), np.diff(d_offsets)),
-                  np.repeat(np.arange(n), np.diff(offsets))]
-    order = np.argsort(owner, kind="stable")
-    both = np.zeros(n + 1, np.int64)
-    np.cumsum(np.bincount(owner, minlength=n), out=both[1:])
-    nbr = np.r_[d_ring, ring][order]
-    weight = np.r_[vote.astype(np.float64), weak][order]
-    flipped, comp, n_comp = NK.orient_by_evidence(both, nbr, weight)
-    sizes = np.diff(d_offsets)
-    src = np.repeat(np.arange(n), sizes)
-    d = points[d_ring] - points[src]
-    area = np.bincount(src, np.einsum("ij,ij->i", d, d), n) / np.maximum(sizes, 1)
-    against = np.bincount(comp, np.where(flipped, area, 0.0), n_comp)
-    total = np.bincount(comp, area, n_comp)
-    return flipped ^ (2.0 * against > total)[comp]
 
 
 def _orientation(points, normals, ring_tab, counts, no_plane):

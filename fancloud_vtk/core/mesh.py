@@ -66,6 +66,7 @@ from . import _csr_kernels as CsrK
 from . import _edge_kernels as EdgeK
 from . import _fill_kernels as FillK
 from . import _mesh_kernels as MK
+from . import _normal_kernels as NK
 from . import _ring_kernels as RingK
 from .model import FanCloud
 
@@ -293,10 +294,7 @@ def fan_cloud_to_mesh(
         # fans that run a shared triangle opposite ways: orient the normals again by the
         # triangles the fans share (section 2b of docs/mesh.md)
         t1 = time.perf_counter()
-        from .fans import orient_by_shared_triangles
-
-        flip = orient_by_shared_triangles(fans.points, fans.normals, fans.open, fans.offsets,
-                                          fans.ring, fancloud.offsets, fancloud.ring)
+        flip = _shared_orientation(fans, fancloud)
         if flip.any():
             fans = _flipped(fans, flip)
             fancloud = _flipped(fancloud, flip)
@@ -466,6 +464,40 @@ def _manifold_of_rings(source, spatial, fancloud, tri, stats, timings, self_inte
             f"are; {stats['self_intersections']} pairs of its triangles intersect",
             DoubtfulMeshWarning, stacklevel=3)
     return _mesh_of(source, spatial, tri, stats, np.empty(0, np.int64))
+
+
+def _shared_orientation(fans: FanCloud, fancloud: FanCloud) -> np.ndarray:
+    """The normals to negate (a mask) so that neighbouring fans run the triangles they
+    share the same way round (docs/mesh.md, section 2b).
+
+    ``fans``: the Delaunay rings; ``fancloud``: the fan cloud's own fans (the same
+    points and normals), called where two fans run a shared triangle opposite ways
+    round. The points are oriented again by
+    :func:`~._normal_kernels.orient_by_evidence`: every shared triangle a vote of 1,
+    and the fan neighbours' normals a weak vote where no triangle decides; in each
+    connected component the orientation most of it had (by area) is kept.
+    """
+    n = fans.n_points
+    vote = NK.shared_triangle_votes(fans.offsets, fans.ring, fans.open)
+    # one graph: the Delaunay rings with their votes, the fans with their normals' agreement
+    weak = NK.agreement_weights(fancloud.points, fancloud.normals, fancloud.offsets,
+                                fancloud.ring, NK.SHARED_WEAK)
+    owner = np.r_[np.repeat(np.arange(n), np.diff(fans.offsets)),
+                  np.repeat(np.arange(n), np.diff(fancloud.offsets))]
+    order = np.argsort(owner, kind="stable")
+    offsets = np.zeros(n + 1, np.int64)
+    np.cumsum(np.bincount(owner, minlength=n), out=offsets[1:])
+    nbr = np.r_[fans.ring, fancloud.ring][order]
+    weight = np.r_[vote.astype(np.float64), weak][order]
+    flipped, comp, n_comp = NK.orient_by_evidence(offsets, nbr, weight)
+    sizes = np.diff(fans.offsets)
+    src = np.repeat(np.arange(n), sizes)
+    d2 = np.einsum("ij,ij->i", fans.points[fans.ring] - fans.points[src],
+                   fans.points[fans.ring] - fans.points[src])
+    area = np.bincount(src, d2, n) / np.maximum(sizes, 1)
+    against = np.bincount(comp, np.where(flipped, area, 0.0), n_comp)
+    total = np.bincount(comp, area, n_comp)
+    return flipped ^ (2.0 * against > total)[comp]
 
 
 def _flipped(fc: FanCloud, flip: np.ndarray) -> FanCloud:
