@@ -338,6 +338,29 @@ def test_result_does_not_depend_on_triangle_order(sphere):
     assert np.array_equal(np.unique(mapped, axis=0), pairs)
 
 
+@pytest.mark.parametrize("noise", [0.0, 0.002, 0.01, 0.03])
+def test_pairs_at_plain_vertices_are_left_out_only_when_they_cannot_intersect(noise, monkeypatch):
+    # the shortcut (pairs sharing a vertex whose triangles cover disjoint sectors around
+    # it are not tested) finds exactly the pairs that testing every pair finds
+    import fancloud_vtk.core.mesh_stats as ms
+
+    mesh = pv.Sphere(theta_resolution=40, phi_resolution=40).clean()
+    rng = np.random.default_rng(5)
+    points = np.asarray(mesh.points, float)
+    points = points + rng.normal(scale=noise, size=points.shape)
+    tri = triangles_of(mesh)
+    tri = np.vstack([tri, tri[:5], tri[10:15, ::-1]])  # repeated triangles intersect
+    plain = ms._plain_vertices(points, tri, ms._triangle_frames(points, tri, ms.AREA_TOL,
+                               ms.INTERSECTION_TOL)[0], len(points), ms._PLAIN_MARGIN,
+                               ms._PLAIN_TILT, 4)
+    assert 0 < plain.sum() < len(points)  # some are plain, not the repeated ones' vertices
+    assert not plain[tri[:5]].any()
+    got = self_intersecting_pairs(points, tri)
+    monkeypatch.setattr(ms, "_PLAIN_TILT", 2.0)  # no vertex is plain: every pair is tested
+    assert np.array_equal(got, self_intersecting_pairs(points, tri))
+    assert len(got) >= 10
+
+
 # ----------------------------------------------------------------------------- brute force
 
 DELTA = 1e-6  # reference decisions closer than this to a tie are not compared

@@ -40,7 +40,7 @@ Examples
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 
 __all__ = [
     "AREA_TOL",
@@ -65,6 +65,12 @@ _CELLS_PER_TRIANGLE = 6.0
 
 #: cell coordinates are packed into 21 bits per axis of an int64 key
 _AXIS_BITS = 21
+
+#: a plain vertex's sectors are this wide and apart at least (pseudo-angle; radians at least)
+_PLAIN_MARGIN = 1e-4
+
+#: and its triangles' normals within acos(_PLAIN_TILT) (84 degrees) of their mean
+_PLAIN_TILT = 0.1
 
 
 class MeshInputError(ValueError):
@@ -604,7 +610,7 @@ def _longest_edge_normal(points, tri, t):
     return best, nx, ny, nz, nn
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def _triangle_frames(points, tri, area_tol, tol):
     """Unit normal, longest edge, inflated bounding box, zero-area flag per triangle.
 
@@ -618,7 +624,7 @@ def _triangle_frames(points, tri, area_tol, tol):
     lo = np.empty((m, 3))
     hi = np.empty((m, 3))
     flat = np.zeros(m, dtype=np.bool_)
-    for t in range(m):
+    for t in prange(m):
         best, nx, ny, nz, nn = _longest_edge_normal(points, tri, t)
         length = np.sqrt(best)
         longest[t] = length
@@ -895,13 +901,50 @@ def _pair_intersects(points, tri, normal, longest, i, j, tol):
 
 
 @njit(cache=True)
+def _box_summary(lo, hi):
+    """(low corner of all boxes, largest side of their union, mean largest box side)."""
+    origin = np.empty(3)
+    top = np.empty(3)
+    for k in range(3):
+        origin[k] = np.inf
+        top[k] = -np.inf
+    ext = 0.0
+    for t in range(lo.shape[0]):
+        e = 0.0
+        for k in range(3):
+            origin[k] = min(origin[k], lo[t, k])
+            top[k] = max(top[k], hi[t, k])
+            e = max(e, hi[t, k] - lo[t, k])
+        ext += e
+    span = max(top[0] - origin[0], top[1] - origin[1], top[2] - origin[2])
+    return origin, span, ext / lo.shape[0]
+
+
+@njit(cache=True, parallel=True)
+def _cell_ranges(lo, hi, origin, h):
+    """The grid cells (low and high corner) of every box, and how many cells it covers."""
+    m = lo.shape[0]
+    ilo = np.empty((m, 3), np.int64)
+    ihi = np.empty((m, 3), np.int64)
+    per = np.empty(m, np.int64)
+    for t in prange(m):
+        c = 1
+        for k in range(3):
+            ilo[t, k] = np.int64(np.floor((lo[t, k] - origin[k]) / h))
+            ihi[t, k] = np.int64(np.floor((hi[t, k] - origin[k]) / h))
+            c *= ihi[t, k] - ilo[t, k] + 1
+        per[t] = c
+    return ilo, ihi, per
+
+
+@njit(cache=True, parallel=True)
 def _grid_entries(ilo, ihi, offsets):
     """One (cell key, triangle) entry per grid cell a triangle's box overlaps."""
     m = ilo.shape[0]
     total = offsets[m]
     keys = np.empty(total, dtype=np.int64)
     tris = np.empty(total, dtype=np.int64)
-    for t in range(m):
+    for t in prange(m):
         o = offsets[t]
         for z in range(ilo[t, 2], ihi[t, 2] + 1):
             for y in range(ilo[t, 1], ihi[t, 1] + 1):
@@ -913,29 +956,81 @@ def _grid_entries(ilo, ihi, offsets):
 
 
 @njit(cache=True)
-def _cell_pairs(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, c, tol, out, pos):
-    """Test the pairs of cell ``c`` whose box overlap starts in this cell.
+def _group_cells(keys):
+    """Group equal keys: (order putting the entries of a cell together, cell starts).
 
-    Writes the intersecting pairs into ``out`` from row ``pos`` when ``out``
-    has rows; returns the number found.
+    A hash table numbers the cells in order of first appearance (no sort).
     """
-    key = keys[cstart[c]]
-    cx = key & 0x1FFFFF
-    cy = (key >> 21) & 0x1FFFFF
-    cz = key >> 42
+    m = keys.size
+    size = 1
+    while size < 2 * m:
+        size *= 2
+    mask = np.uint64(size - 1)
+    table = np.full(size, -1, np.int64)
+    cell_key = np.empty(m, np.int64)
+    cell = np.empty(m, np.int64)
+    n_cells = 0
+    for a in range(m):
+        key = keys[a]
+        slot = (np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(32)
+        slot &= mask
+        while True:
+            c = table[slot]
+            if c < 0:
+                table[slot] = n_cells
+                cell_key[n_cells] = key
+                cell[a] = n_cells
+                n_cells += 1
+                break
+            if cell_key[c] == key:
+                cell[a] = c
+                break
+            slot = (slot + np.uint64(1)) & mask
+    cstart = np.zeros(n_cells + 1, np.int64)
+    for a in range(m):
+        cstart[cell[a] + 1] += 1
+    for c in range(n_cells):
+        cstart[c + 1] += cstart[c]
+    fill = cstart[:-1].copy()
+    order = np.empty(m, np.int64)
+    for a in range(m):
+        order[fill[cell[a]]] = a
+        fill[cell[a]] += 1
+    return order, cstart
+
+
+@njit(cache=True)
+def _cell_pairs(points, tri, normal, longest, plain, blo, bhi, corner, tris, s, e, tol, out, pos):
+    """Test the pairs of the cell of entries ``s:e`` whose box overlap starts in this cell.
+
+    Pairs that share a plain vertex (:func:`_plain_vertices`) meet only there and
+    are not tested. Writes the intersecting pairs into ``out`` from row ``pos``
+    when ``out`` has rows; returns the number found.
+    """
     found = 0
-    for a in range(cstart[c], cstart[c + 1]):
+    for a in range(s, e):
         i = tris[a]
-        for b in range(a + 1, cstart[c + 1]):
-            j = tris[b]
-            if _boxes_apart(lo, hi, i, j):
+        for b in range(a + 1, e):
+            # each pair is tested once: in the cell holding the low corner of the
+            # overlap of the boxes (on each axis, one of the two starts in this cell)
+            if corner[a] | corner[b] != 7:
                 continue
-            # each pair is tested once: in the cell holding the low corner of the overlap
             if (
-                max(ilo[i, 0], ilo[j, 0]) != cx
-                or max(ilo[i, 1], ilo[j, 1]) != cy
-                or max(ilo[i, 2], ilo[j, 2]) != cz
+                blo[a, 0] > bhi[b, 0]
+                or blo[b, 0] > bhi[a, 0]
+                or blo[a, 1] > bhi[b, 1]
+                or blo[b, 1] > bhi[a, 1]
+                or blo[a, 2] > bhi[b, 2]
+                or blo[b, 2] > bhi[a, 2]
             ):
+                continue
+            j = tris[b]
+            skip = False
+            for x in range(3):
+                v = tri[i, x]
+                if plain[v] and (v == tri[j, 0] or v == tri[j, 1] or v == tri[j, 2]):
+                    skip = True
+            if skip:
                 continue
             if _pair_intersects(points, tri, normal, longest, i, j, tol):
                 if out.shape[0]:
@@ -946,41 +1041,201 @@ def _cell_pairs(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, c
 
 
 @njit(cache=True, parallel=True)
-def _count_hits(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, tol):
+def _count_hits(points, tri, normal, longest, plain, blo, bhi, corner, tris, cstart, tol):
     n_cells = cstart.size - 1
     hits = np.zeros(n_cells, dtype=np.int64)
     none = np.empty((0, 2), dtype=np.int64)
     for c in prange(n_cells):
-        hits[c] = _cell_pairs(
-            points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, c, tol, none, 0
-        )
+        hits[c] = _cell_pairs(points, tri, normal, longest, plain, blo, bhi, corner, tris,
+                              cstart[c], cstart[c + 1], tol, none, 0)
     return hits
 
 
 @njit(cache=True)
-def _collect_hits(points, tri, normal, longest, lo, hi, ilo, keys, tris, cstart, tol, hits):
+def _collect_hits(points, tri, normal, longest, plain, blo, bhi, corner, tris, cstart, tol, hits):
     offsets = np.zeros(hits.size + 1, dtype=np.int64)
     offsets[1:] = np.cumsum(hits)
     out = np.empty((offsets[-1], 2), dtype=np.int64)
     for c in range(hits.size):
         if hits[c]:
-            _cell_pairs(
-                points,
-                tri,
-                normal,
-                longest,
-                lo,
-                hi,
-                ilo,
-                keys,
-                tris,
-                cstart,
-                c,
-                tol,
-                out,
-                offsets[c],
-            )
+            _cell_pairs(points, tri, normal, longest, plain, blo, bhi, corner, tris,
+                        cstart[c], cstart[c + 1], tol, out, offsets[c])
     return out
+
+
+@njit(cache=True)
+def _pseudo_angle(x, y):
+    """A cheap increasing function of the angle of ``(x, y)``, in ``[0, 4)``.
+
+    Its derivative with respect to the angle lies between 1/2 and 1, and it
+    grows by 2 from a direction to its opposite.
+    """
+    if y >= 0.0:
+        if x >= 0.0:
+            s = x + y
+            return y / s if s > 0.0 else 0.0
+        return 1.0 - x / (y - x)
+    if x < 0.0:
+        return 2.0 - y / (-x - y)
+    return 3.0 + x / (x - y)
+
+
+@njit(cache=True)
+def _plain_vertex(points, tri, normal, at, s, e, v, margin, tilt, start, end, first, last):
+    """Is vertex ``v`` (its corners ``at[s:e]``) plain? See :func:`_plain_vertices`."""
+    k = e - s
+    if k == 1:
+        return True
+    if k > start.size:
+        return False
+    dx = 0.0
+    dy = 0.0
+    dz = 0.0
+    for a in range(s, e):
+        t = at[a] // 3
+        dx += normal[t, 0]
+        dy += normal[t, 1]
+        dz += normal[t, 2]
+    dn = np.sqrt(dx * dx + dy * dy + dz * dz)
+    if dn < 1e-6:
+        return False
+    dx /= dn
+    dy /= dn
+    dz /= dn
+    for a in range(s, e):
+        t = at[a] // 3
+        if normal[t, 0] * dx + normal[t, 1] * dy + normal[t, 2] * dz < tilt:
+            return False
+    # a frame (e1, e2) of the plane across d, e1 x e2 = d
+    if abs(dx) < 0.9:
+        ex, ey, ez = 0.0, dz, -dy  # (1, 0, 0) x d
+    else:
+        ex, ey, ez = -dz, 0.0, dx  # (0, 1, 0) x d
+    en = np.sqrt(ex * ex + ey * ey + ez * ez)
+    ex /= en
+    ey /= en
+    ez /= en
+    fx = dy * ez - dz * ey
+    fy = dz * ex - dx * ez
+    fz = dx * ey - dy * ex
+    for a in range(k):
+        h = at[s + a]
+        t = h // 3
+        c = h % 3
+        p = tri[t, (c + 1) % 3]
+        q = tri[t, (c + 2) % 3]
+        px = points[p, 0] - points[v, 0]
+        py = points[p, 1] - points[v, 1]
+        pz = points[p, 2] - points[v, 2]
+        qx = points[q, 0] - points[v, 0]
+        qy = points[q, 1] - points[v, 1]
+        qz = points[q, 2] - points[v, 2]
+        x0 = _pseudo_angle(px * ex + py * ey + pz * ez, px * fx + py * fy + pz * fz)
+        x1 = _pseudo_angle(qx * ex + qy * ey + qz * ez, qx * fx + qy * fy + qz * fz)
+        # sectors by their start (insertion sort)
+        b = a - 1
+        while b >= 0 and start[b] > x0:
+            start[b + 1] = start[b]
+            end[b + 1] = end[b]
+            first[b + 1] = first[b]
+            last[b + 1] = last[b]
+            b -= 1
+        start[b + 1] = x0
+        end[b + 1] = x1
+        first[b + 1] = p
+        last[b + 1] = q
+    total = 0.0
+    for a in range(k):
+        width = end[a] - start[a]
+        if width < 0.0:
+            width += 4.0
+        if width < margin or width > 2.0 - margin:
+            return False
+        nxt = (a + 1) % k
+        gap = start[nxt] - end[a]
+        if gap < 0.0:
+            gap += 4.0
+        if last[a] == first[nxt]:
+            if gap != 0.0:
+                return False
+        elif gap < margin:
+            return False
+        total += width + gap
+    return abs(total - 4.0) < 1e-6
+
+
+@njit(cache=True, parallel=True)
+def _plain_vertices(points, tri, normal, n_points, margin, tilt, chunks):
+    """Vertices whose triangles' pairs meet only at them (an exact shortcut of the test).
+
+    A vertex is *plain* when its triangles, projected along the mean of their
+    unit normals ``d``, cover disjoint angular sectors about it: every normal
+    within ``acos(tilt)`` of ``d``, every sector at least ``margin`` wide,
+    consecutive sectors either sharing their edge or ``margin`` apart, and
+    once round in all (angles as :func:`_pseudo_angle`, which never widens
+    one). Two such triangles then meet only at the vertex (or along their
+    shared edge, without folding), far from the tolerances of
+    :func:`_pair_intersects`, which would find no intersection either.
+    """
+    m = tri.shape[0]
+    count = np.zeros(n_points + 1, np.int64)
+    for t in range(m):
+        for k in range(3):
+            count[tri[t, k] + 1] += 1
+    off = np.cumsum(count)
+    at = np.empty(3 * m, np.int64)
+    fill = off[:-1].copy()
+    for t in range(m):
+        for k in range(3):
+            v = tri[t, k]
+            at[fill[v]] = 3 * t + k
+            fill[v] += 1
+    plain = np.zeros(n_points, np.bool_)
+    step = (n_points + chunks - 1) // chunks
+    for c in prange(chunks):
+        start = np.empty(64)
+        end = np.empty(64)
+        first = np.empty(64, np.int64)
+        last = np.empty(64, np.int64)
+        for v in range(c * step, min(n_points, (c + 1) * step)):
+            if off[v + 1] > off[v]:
+                plain[v] = _plain_vertex(points, tri, normal, at, off[v], off[v + 1], v,
+                                         margin, tilt, start, end, first, last)
+    return plain
+
+
+@njit(cache=True, parallel=True)
+def _entry_boxes(lo, hi, ilo, keys, tris, order):
+    """The entries ``order`` of a cell grid, with their triangle's box and corner bits.
+
+    Returns (triangles, boxes' low and high corners in float32 rounded
+    outwards, corner bits): bit ``k`` says that the box starts in the
+    entry's cell along axis ``k``.
+    """
+    m = order.size
+    sorted_tris = np.empty(m, np.int64)
+    blo = np.empty((m, 3), np.float32)
+    bhi = np.empty((m, 3), np.float32)
+    corner = np.zeros(m, np.uint8)
+    for a in prange(m):
+        t = tris[order[a]]
+        key = keys[order[a]]
+        sorted_tris[a] = t
+        cell = (key & 0x1FFFFF, (key >> 21) & 0x1FFFFF, key >> 42)
+        bits = 0
+        for k in range(3):
+            x = np.float32(lo[t, k])
+            if x > lo[t, k]:
+                x = np.nextafter(x, np.float32(-np.inf))
+            blo[a, k] = x
+            y = np.float32(hi[t, k])
+            if y < hi[t, k]:
+                y = np.nextafter(y, np.float32(np.inf))
+            bhi[a, k] = y
+            if ilo[t, k] == cell[k]:
+                bits |= 1 << k
+        corner[a] = bits
+    return sorted_tris, blo, bhi, corner
 
 
 def _intersecting_pairs(points: np.ndarray, tri: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -996,27 +1251,23 @@ def _intersecting_pairs(points: np.ndarray, tri: np.ndarray, keep: np.ndarray) -
         if sub.shape[0] < 2:
             return np.empty((0, 2), dtype=np.int64)
     # uniform grid of cubic cells; each triangle listed in every cell its box overlaps
-    origin = lo.min(axis=0)
-    span = float((hi.max(axis=0) - origin).max())
-    h = _CELL_FACTOR * float((hi - lo).max(axis=1).mean())
+    origin, span, extent = _box_summary(lo, hi)
+    h = _CELL_FACTOR * extent
     h = max(h, span / ((1 << _AXIS_BITS) - 2), np.finfo(float).tiny)
     while True:
-        ilo = np.floor((lo - origin) / h).astype(np.int64)
-        ihi = np.floor((hi - origin) / h).astype(np.int64)
-        per = np.prod(ihi - ilo + 1, axis=1)
+        ilo, ihi, per = _cell_ranges(lo, hi, origin, h)
         if per.sum() <= _CELLS_PER_TRIANGLE * per.size or per.max() == 1:
             break
         h *= 1.5
     offsets = np.zeros(per.size + 1, dtype=np.int64)
     np.cumsum(per, out=offsets[1:])
     keys, tris = _grid_entries(ilo, ihi, offsets)
-    order = np.argsort(keys, kind="stable")
-    keys = keys[order]
-    tris = tris[order]
-    new = np.ones(keys.size, dtype=bool)
-    new[1:] = keys[1:] != keys[:-1]
-    cstart = np.append(np.flatnonzero(new), keys.size)
-    args = (points, sub, normal, longest, lo, hi, ilo, keys, tris, cstart, INTERSECTION_TOL)
+    order, cstart = _group_cells(keys)
+    tris, blo, bhi, corner = _entry_boxes(lo, hi, ilo, keys, tris, order)
+    del keys, order
+    plain = _plain_vertices(points, sub, normal, points.shape[0], _PLAIN_MARGIN, _PLAIN_TILT,
+                            8 * get_num_threads())
+    args = (points, sub, normal, longest, plain, blo, bhi, corner, tris, cstart, INTERSECTION_TOL)
     hits = _count_hits(*args)
     local = _collect_hits(*args, hits)
     pairs = ids[local]  # each pair once, i < j (ids increase)
@@ -1061,7 +1312,14 @@ def self_intersecting_pairs(points, triangles) -> np.ndarray:
     more than 6 cells per triangle on average): each triangle is listed in
     the cells its box overlaps, and a pair is tested once, in the cell
     holding the low corner of the overlap of the boxes. The tests run in
-    parallel over the cells.
+    parallel over the cells. A pair sharing a *plain* vertex is not tested:
+    one whose triangles, projected along the mean of their normals (each
+    within 84 degrees of it), cover disjoint angular sectors around it, each
+    at least ``1e-4`` wide and apart unless they share an edge, once round
+    in all. Such triangles meet only at the vertex, or along their shared
+    edge unfolded, far from the tolerances above, and the test would find
+    no intersection (the result is the same; on a smooth mesh almost every
+    vertex is plain, and almost every pair tested shares one).
 
     Parameters
     ----------
