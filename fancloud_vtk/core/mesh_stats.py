@@ -957,7 +957,8 @@ def _grid_entries(ilo, ihi, offsets):
 
 @njit(cache=True)
 def _group_cells(keys):
-    """Group equal keys: (order putting the entries of a cell together, cell starts).
+    """Group equal keys: (each entry's place when the entries of a cell are put together,
+    cell starts).
 
     A hash table numbers the cells in order of first appearance (no sort).
     """
@@ -992,11 +993,12 @@ def _group_cells(keys):
     for c in range(n_cells):
         cstart[c + 1] += cstart[c]
     fill = cstart[:-1].copy()
-    order = np.empty(m, np.int64)
+    pos = cell  # each entry's place in cell order (in place of its cell)
     for a in range(m):
-        order[fill[cell[a]]] = a
-        fill[cell[a]] += 1
-    return order, cstart
+        c = cell[a]
+        pos[a] = fill[c]
+        fill[c] += 1
+    return pos, cstart
 
 
 @njit(cache=True)
@@ -1205,36 +1207,37 @@ def _plain_vertices(points, tri, normal, n_points, margin, tilt, chunks):
 
 
 @njit(cache=True, parallel=True)
-def _entry_boxes(lo, hi, ilo, keys, tris, order):
-    """The entries ``order`` of a cell grid, with their triangle's box and corner bits.
+def _entry_boxes(lo, hi, ilo, keys, tris, pos):
+    """The grid entries put in their places ``pos``, with their triangle's box and corner.
 
     Returns (triangles, boxes' low and high corners in float32 rounded
     outwards, corner bits): bit ``k`` says that the box starts in the
     entry's cell along axis ``k``.
     """
-    m = order.size
+    m = pos.size
     sorted_tris = np.empty(m, np.int64)
     blo = np.empty((m, 3), np.float32)
     bhi = np.empty((m, 3), np.float32)
-    corner = np.zeros(m, np.uint8)
+    corner = np.empty(m, np.uint8)
     for a in prange(m):
-        t = tris[order[a]]
-        key = keys[order[a]]
-        sorted_tris[a] = t
+        t = tris[a]
+        key = keys[a]
+        d = pos[a]
+        sorted_tris[d] = t
         cell = (key & 0x1FFFFF, (key >> 21) & 0x1FFFFF, key >> 42)
         bits = 0
         for k in range(3):
             x = np.float32(lo[t, k])
             if x > lo[t, k]:
                 x = np.nextafter(x, np.float32(-np.inf))
-            blo[a, k] = x
+            blo[d, k] = x
             y = np.float32(hi[t, k])
             if y < hi[t, k]:
                 y = np.nextafter(y, np.float32(np.inf))
-            bhi[a, k] = y
+            bhi[d, k] = y
             if ilo[t, k] == cell[k]:
                 bits |= 1 << k
-        corner[a] = bits
+        corner[d] = bits
     return sorted_tris, blo, bhi, corner
 
 
@@ -1262,9 +1265,9 @@ def _intersecting_pairs(points: np.ndarray, tri: np.ndarray, keep: np.ndarray) -
     offsets = np.zeros(per.size + 1, dtype=np.int64)
     np.cumsum(per, out=offsets[1:])
     keys, tris = _grid_entries(ilo, ihi, offsets)
-    order, cstart = _group_cells(keys)
-    tris, blo, bhi, corner = _entry_boxes(lo, hi, ilo, keys, tris, order)
-    del keys, order
+    pos, cstart = _group_cells(keys)
+    tris, blo, bhi, corner = _entry_boxes(lo, hi, ilo, keys, tris, pos)
+    del keys, pos
     plain = _plain_vertices(points, sub, normal, points.shape[0], _PLAIN_MARGIN, _PLAIN_TILT,
                             8 * get_num_threads())
     args = (points, sub, normal, longest, plain, blo, bhi, corner, tris, cstart, INTERSECTION_TOL)
