@@ -1317,9 +1317,16 @@ def _on_real_boundary(fc: FanCloud, loop) -> bool:
 
 
 def _tangent_basis(normal):
-    u = np.cross(normal, [1.0, 0, 0] if abs(normal[0]) < 0.9 else [0, 1.0, 0])
+    """Two unit vectors across a unit normal (``n x e``, then ``n x u``; in plain floats:
+    numpy's cross product of two 3-vectors costs more than the rest of a small fill)."""
+    nx, ny, nz = (float(x) for x in normal)
+    if abs(nx) < 0.9:  # n x (1, 0, 0)
+        u = np.array([ny * 0.0 - nz * 0.0, nz * 1.0 - nx * 0.0, nx * 0.0 - ny * 1.0])
+    else:  # n x (0, 1, 0)
+        u = np.array([ny * 0.0 - nz * 1.0, nz * 0.0 - nx * 0.0, nx * 1.0 - ny * 0.0])
     u /= np.linalg.norm(u)
-    return u, np.cross(normal, u)
+    ux, uy, uz = (float(x) for x in u)
+    return u, np.array([ny * uz - nz * uy, nz * ux - nx * uz, nx * uy - ny * ux])
 
 
 def _inside_polygon(xy, polygon):
