@@ -943,7 +943,7 @@ def _grid_entries(ilo, ihi, offsets):
     m = ilo.shape[0]
     total = offsets[m]
     keys = np.empty(total, dtype=np.int64)
-    tris = np.empty(total, dtype=np.int64)
+    tris = np.empty(total, dtype=np.int32)
     for t in prange(m):
         o = offsets[t]
         for z in range(ilo[t, 2], ihi[t, 2] + 1):
@@ -956,28 +956,25 @@ def _grid_entries(ilo, ihi, offsets):
 
 
 @njit(cache=True)
-def _group_cells(keys):
-    """Group equal keys: (each entry's place when the entries of a cell are put together,
-    cell starts).
-
-    A hash table numbers the cells in order of first appearance (no sort).
-    """
+def _number_cells(keys, size):
+    """Number the distinct keys in order of first appearance with a hash table of ``size``
+    slots (a power of 2); returns (cell per key, number of cells), or (None-like empty
+    array, -1) when more than half the slots would fill."""
     m = keys.size
-    size = 1
-    while size < 2 * m:
-        size *= 2
     mask = np.uint64(size - 1)
-    table = np.full(size, -1, np.int64)
-    cell_key = np.empty(m, np.int64)
-    cell = np.empty(m, np.int64)
+    limit = size // 2
+    table = np.full(size, -1, np.int32)
+    cell_key = np.empty(limit, np.int64)
+    cell = np.empty(m, np.int32)
     n_cells = 0
     for a in range(m):
         key = keys[a]
-        slot = (np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(32)
-        slot &= mask
+        slot = ((np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(32)) & mask
         while True:
             c = table[slot]
             if c < 0:
+                if n_cells == limit:
+                    return cell[:0], -1
                 table[slot] = n_cells
                 cell_key[n_cells] = key
                 cell[a] = n_cells
@@ -987,6 +984,27 @@ def _group_cells(keys):
                 cell[a] = c
                 break
             slot = (slot + np.uint64(1)) & mask
+    return cell, n_cells
+
+
+@njit(cache=True)
+def _group_cells(keys):
+    """Group equal keys: (each entry's place when the entries of a cell are put together,
+    cell starts).
+
+    A hash table numbers the cells in order of first appearance (no sort). It
+    starts at about half the number of keys (cells hold several entries) and
+    grows when more than half full.
+    """
+    m = keys.size
+    size = 1024
+    while size < m // 2:
+        size *= 2
+    while True:
+        cell, n_cells = _number_cells(keys, size)
+        if n_cells >= 0:
+            break
+        size *= 4
     cstart = np.zeros(n_cells + 1, np.int64)
     for a in range(m):
         cstart[cell[a] + 1] += 1
@@ -1215,7 +1233,7 @@ def _entry_boxes(lo, hi, ilo, keys, tris, pos):
     entry's cell along axis ``k``.
     """
     m = pos.size
-    sorted_tris = np.empty(m, np.int64)
+    sorted_tris = np.empty(m, np.int32)
     blo = np.empty((m, 3), np.float32)
     bhi = np.empty((m, 3), np.float32)
     corner = np.empty(m, np.uint8)
@@ -1264,6 +1282,8 @@ def _intersecting_pairs(points: np.ndarray, tri: np.ndarray, keep: np.ndarray) -
         h *= 1.5
     offsets = np.zeros(per.size + 1, dtype=np.int64)
     np.cumsum(per, out=offsets[1:])
+    if offsets[-1] >= 2**31 - 1:
+        raise MeshInputError(f"too many triangles to test for intersections ({len(sub):,})")
     keys, tris = _grid_entries(ilo, ihi, offsets)
     pos, cstart = _group_cells(keys)
     tris, blo, bhi, corner = _entry_boxes(lo, hi, ilo, keys, tris, pos)
