@@ -98,6 +98,8 @@ def as_triangles(triangles, n_points: int | None) -> np.ndarray:
         arr = arr.reshape(0, 3)
     if arr.ndim != 2 or arr.shape[1] != 3:
         raise MeshInputError(f"triangles must have shape (m, 3), got {arr.shape}")
+    if 3 * arr.shape[0] >= 2**31 - 1:  # half-edges are numbered in 32 bits
+        raise MeshInputError(f"too many triangles ({arr.shape[0]:,}; at most 715,827,881)")
     if arr.size:
         lo, hi = arr.min(), arr.max()
         if lo < 0:
@@ -179,8 +181,8 @@ def _build_edges(tri, n):
     for v in range(n):
         start[v + 1] += start[v]
     # the half-edges by lower vertex (in increasing number), with their higher vertex
-    order = np.empty(n_half, dtype=np.int64)
-    high = np.empty(n_half, dtype=np.int64)
+    order = np.empty(n_half, dtype=np.int32)  # 32 bits: half the memory (as_triangles
+    high = np.empty(n_half, dtype=np.int32)  # bounds the half-edges below 2**31)
     fill = start[:n].copy()
     for t in range(m):
         for k in range(3):
@@ -191,11 +193,11 @@ def _build_edges(tri, n):
             order[at] = 3 * t + k
             high[at] = max(a, b)
             fill[lo] = at + 1
-    edge = np.empty(n_half, dtype=np.int64)
-    count = np.zeros(n_half, dtype=np.int64)
-    first = np.empty(n_half, dtype=np.int64)
-    at = np.empty(n_half + 1, dtype=np.int64)
-    twin = np.full(n_half, -1, dtype=np.int64)
+    edge = np.empty(n_half, dtype=np.int32)
+    count = np.zeros(n_half, dtype=np.int32)
+    first = np.empty(n_half, dtype=np.int32)
+    at = np.empty(n_half + 1, dtype=np.int32)
+    twin = np.full(n_half, -1, dtype=np.int32)
     n_edges = 0
     for v in range(n):
         s = start[v]
@@ -1203,7 +1205,7 @@ def _plain_vertices(points, tri, normal, n_points, margin, tilt, chunks):
         for k in range(3):
             count[tri[t, k] + 1] += 1
     off = np.cumsum(count)
-    at = np.empty(3 * m, np.int64)
+    at = np.empty(3 * m, np.int32)  # corners 3 t + k (as_triangles keeps them below 2**31)
     fill = off[:-1].copy()
     for t in range(m):
         for k in range(3):
