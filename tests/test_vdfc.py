@@ -366,6 +366,21 @@ def test_incremental_front_equals_the_front_from_scratch(forest):
     assert np.array_equal(a.triangles, b.triangles)
 
 
+def test_the_frame_counter_starts_again_before_its_32_bit_memo_overflows(forest):
+    vd = _fresh(forest)
+    other = _fresh(forest)
+    path = terrain_path(vd.bounds(), 6, height=0.3)
+    vd.front_arrays(path[0], 0.01, 8.0)
+    vd._tick = 2**30 - 2  # the memo holds 2 tick + answer: near the int32 limit
+    for cam in path[1:]:
+        inc = vd.front_arrays(cam, 0.01, 8.0)
+        assert 0 < vd._tick < 2**30 and vd._memo.min() >= -2  # no wrap-around
+        new = other.front_arrays(cam, 0.01, 8.0, incremental=False)
+        assert np.array_equal(inc.point_data["node_id"], new.point_data["node_id"])
+        assert np.array_equal(inc.triangles, new.triangles)
+    assert vd._tick < 10  # it started again
+
+
 def test_parallel_front_triangles_equal_the_serial_ones(forest, monkeypatch):
     import fancloud_vtk.core.vdfc as vdfc_module
 

@@ -771,10 +771,10 @@ class ViewDependentFanCloud:
         self._state = np.zeros(self.n_nodes, np.int8)
         self._state[self.roots] = VK.FRONT
         self._front = self.roots.copy()
-        self._aidx = np.full(self.n_nodes, -1, np.int64)
+        self._aidx = np.full(self.n_nodes, -1, np.int32)
         # the front's tests of ancestors, made once per frame (valid for one tick)
         self._tick = 0
-        self._memo = np.full(self.n_nodes, -2, np.int64)
+        self._memo = np.full(self.n_nodes, -2, np.int32)
 
     def default_d_max(self, camera) -> float:
         """The range of sight by default: from the eye to the farthest corner of the bounds."""
@@ -835,6 +835,9 @@ class ViewDependentFanCloud:
         if not incremental:
             self.reset_front()
         self._tick += 1
+        if self._tick >= 2**30:  # the memo holds 2 tick + answer in 32 bits: start again
+            self._memo.fill(-2)
+            self._tick = 1
         # two cores halve the work of a large front; a small one is not worth waking them
         chunks = numba.get_num_threads() if len(self._front) >= PARALLEL_FRONT else 1
         args = (self.positions, self.radius, self.bound, self.children, self.parent)
