@@ -672,9 +672,7 @@ def _close_holes(fc: FanCloud, triangles, cand, max_hole, max_diameter=0.0, roun
         around[np.concatenate(failed)] = True
         keep = ~around[triangles].any(axis=1)
         widened[triangles[~keep].ravel()] = True
-        triangles = triangles[keep]
-        keep = np.ones(len(triangles), bool)
-        MK.split_pinched(triangles, keep, n)
+        MK.split_pinched(triangles, keep, n)  # only kept triangles count: one compaction
         triangles = triangles[keep]
     if best is None or _area(fc.points, triangles) >= best[0]:
         return triangles, closed, inserted
@@ -812,9 +810,8 @@ def _remove_intersections(fc: FanCloud, triangles, refill, rounds=3):
         bad = np.zeros(len(triangles), bool)
         bad[np.where(first, pairs[:, 0], pairs[:, 1])] = True
         removed += int(bad.sum())
-        triangles = triangles[~bad]
-        keep = np.ones(len(triangles), bool)
-        MK.split_pinched(triangles, keep, n)
+        keep = ~bad
+        MK.split_pinched(triangles, keep, n)  # only kept triangles count: one compaction
         triangles = triangles[keep]
         if r == rounds or refill is None:
             break
