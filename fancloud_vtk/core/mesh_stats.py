@@ -42,6 +42,9 @@ from __future__ import annotations
 import numpy as np
 from numba import get_num_threads, njit, prange
 
+from ._csr_kernels import csr_of
+from ._fan_kernels import _plane_basis
+
 __all__ = [
     "AREA_TOL",
     "INTERSECTION_TOL",
@@ -1104,7 +1107,7 @@ def _pseudo_angle(x, y):
 
 @njit(cache=True)
 def _plain_vertex(points, tri, normal, at, s, e, v, margin, tilt, start, end, first, last):
-    """Is vertex ``v`` (its corners ``at[s:e]``) plain? See :func:`_plain_vertices`."""
+    """Is vertex ``v`` (its triangles ``at[s:e]``) plain? See :func:`_plain_vertices`."""
     k = e - s
     if k == 1:
         return True
@@ -1114,7 +1117,7 @@ def _plain_vertex(points, tri, normal, at, s, e, v, margin, tilt, start, end, fi
     dy = 0.0
     dz = 0.0
     for a in range(s, e):
-        t = at[a] // 3
+        t = at[a]
         dx += normal[t, 0]
         dy += normal[t, 1]
         dz += normal[t, 2]
@@ -1125,25 +1128,13 @@ def _plain_vertex(points, tri, normal, at, s, e, v, margin, tilt, start, end, fi
     dy /= dn
     dz /= dn
     for a in range(s, e):
-        t = at[a] // 3
+        t = at[a]
         if normal[t, 0] * dx + normal[t, 1] * dy + normal[t, 2] * dz < tilt:
             return False
-    # a frame (e1, e2) of the plane across d, e1 x e2 = d
-    if abs(dx) < 0.9:
-        ex, ey, ez = 0.0, dz, -dy  # (1, 0, 0) x d
-    else:
-        ex, ey, ez = -dz, 0.0, dx  # (0, 1, 0) x d
-    en = np.sqrt(ex * ex + ey * ey + ez * ez)
-    ex /= en
-    ey /= en
-    ez /= en
-    fx = dy * ez - dz * ey
-    fy = dz * ex - dx * ez
-    fz = dx * ey - dy * ex
+    ex, ey, ez, fx, fy, fz = _plane_basis(dx, dy, dz)  # e x f = d
     for a in range(k):
-        h = at[s + a]
-        t = h // 3
-        c = h % 3
+        t = at[s + a]
+        c = 0 if tri[t, 0] == v else (1 if tri[t, 1] == v else 2)
         p = tri[t, (c + 1) % 3]
         q = tri[t, (c + 2) % 3]
         px = points[p, 0] - points[v, 0]
@@ -1199,19 +1190,7 @@ def _plain_vertices(points, tri, normal, n_points, margin, tilt, chunks):
     shared edge, without folding), far from the tolerances of
     :func:`_pair_intersects`, which would find no intersection either.
     """
-    m = tri.shape[0]
-    count = np.zeros(n_points + 1, np.int64)
-    for t in range(m):
-        for k in range(3):
-            count[tri[t, k] + 1] += 1
-    off = np.cumsum(count)
-    at = np.empty(3 * m, np.int32)  # corners 3 t + k (as_triangles keeps them below 2**31)
-    fill = off[:-1].copy()
-    for t in range(m):
-        for k in range(3):
-            v = tri[t, k]
-            at[fill[v]] = 3 * t + k
-            fill[v] += 1
+    off, at = csr_of(tri, n_points)  # the triangles at each vertex
     plain = np.zeros(n_points, np.bool_)
     step = (n_points + chunks - 1) // chunks
     for c in prange(chunks):
