@@ -132,16 +132,65 @@ def test_entropy_merge_places_the_weighted_mean_and_half_edge_a_child(terrain):
     vd = ViewDependentFanCloud.build(terrain, "half_edge")
     inner = np.flatnonzero(~vd.is_leaf)
     c = vd.children[inner]
-    on_child = np.isclose(vd.positions[inner], vd.positions[c[:, 1]]).all(axis=1)
-    assert on_child.all()
+    on_q = np.isclose(vd.positions[inner], vd.positions[c[:, 1]]).all(axis=1)
+    on_p = np.isclose(vd.positions[inner], vd.positions[c[:, 0]]).all(axis=1)
+    assert (on_p | on_q).all()
+    # away from the boundary r is at q; on it, at the open child
+    inside = ~vd.open[c].any(axis=1)
+    assert on_q[inside].all() and inside.sum() > len(inner) // 2
     ve = ViewDependentFanCloud.build(terrain, "entropy")
     inner = np.flatnonzero(~ve.is_leaf)
     a, b = ve.positions[ve.children[inner, 0]], ve.positions[ve.children[inner, 1]]
     r = ve.positions[inner]
-    # r on the segment between its children
+    # r on the segment between its children (at the open one on the boundary)
     t = np.einsum("ij,ij->i", r - a, b - a) / np.einsum("ij,ij->i", b - a, b - a)
     assert ((t > -1e-9) & (t < 1 + 1e-9)).all()
     assert np.allclose(a + t[:, None] * (b - a), r)
+
+
+@pytest.mark.parametrize("merge", ["entropy", "half_edge"])
+@pytest.mark.parametrize("blocked", [False, True])
+def test_merges_on_the_boundary_keep_it_and_its_corners_where_they_are(terrain, merge,
+                                                                        blocked):
+    blocks = terrain_blocks((N, N), (21, 21)) if blocked else None
+    vd = ViewDependentFanCloud.build(terrain, merge, blocks=blocks)
+    inner = np.flatnonzero(~vd.is_leaf & vd.open)
+    p = vd.positions[inner]
+    top = (N - 1) * SPACING
+    x0, x1 = np.isclose(p[:, 0], 0), np.isclose(p[:, 0], top)
+    y0, y1 = np.isclose(p[:, 1], 0), np.isclose(p[:, 1], top)
+    assert len(inner) > 20 and (x0 | x1 | y0 | y1).all()
+    # every merged node on the boundary is at one of the points it stands for, and a
+    # node that holds a corner of the grid is at one of its corners
+    corners = np.array([0, N - 1, N * (N - 1), N * N - 1])
+    par = vd.parent
+    for c in corners:
+        x = par[c]
+        while x >= 0:
+            held = vd.positions[np.intersect1d(vd.leaves(x), corners)]
+            assert (held == vd.positions[x]).all(axis=1).any(), (c, x)
+            x = par[x]
+    leaf_pos = {tuple(v) for v in vd.positions[:vd.n_leaves].tolist()}
+    assert all(tuple(v) in leaf_pos for v in p.tolist())
+
+
+@pytest.mark.parametrize("blocked", [False, True])
+def test_the_front_covers_the_whole_grid_borders_included(terrain, blocked):
+    from fancloud_vtk.bench.vdfc import _surface_errors
+
+    heights = _heights()
+    blocks = terrain_blocks((N, N), (21, 21)) if blocked else None
+    vd = ViewDependentFanCloud.build(terrain, blocks=blocks)
+    want = np.ones((N, N), bool)
+    for cam, e_max in ((ABOVE, 0.05), (ABOVE, 0.2), (ABOVE, 0.5), (OBLIQUE, 0.05),
+                       (OBLIQUE, 0.5)):
+        front = vd.front_arrays(cam, e_max)
+        _, _, hits = _surface_errors(front.points, front.triangles, heights,
+                                     (SPACING, SPACING), (0.0, 0.0), want)
+        eye, planes = Camera.of(cam).frustum()
+        seen = np.all(terrain.points @ planes[:, :3].T + planes[:, 3] >= 0, axis=1)
+        assert seen.sum() > 100
+        assert (hits.ravel()[seen] > 0).all(), (cam, e_max, int((hits.ravel()[seen] == 0).sum()))
 
 
 def _sector_plane_distance(vd, node, x):

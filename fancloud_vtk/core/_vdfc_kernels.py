@@ -161,6 +161,9 @@ _HEAD = 4  # first neighbour column
 _LOCKED = 1
 _OPEN = 2
 _TAINT = 4  # built from, or next to, a marked node (see merge_forest)
+_CORNER = 8  # open, at a corner of the boundary (``open0 == 2``, see merge_forest)
+#: ``open0`` codes of :func:`merge_forest`: closed, open, open at a corner.
+CLOSED, OPEN, CORNER = 0, 1, 2
 
 
 if sys.platform.startswith("linux") and intrinsic is not None:
@@ -387,6 +390,61 @@ def _sorted_ring(F, s, nbrs, k, is_open, out, ang):
 
 
 @njit(cache=True)
+def _open_sector(F, R, s, ang):
+    """The angle an open node's fan covers: 2 pi minus the widest angular gap between
+    its neighbours around its normal (pi on a straight boundary, pi / 2 at a square
+    corner). ``ang``: scratch of at least its neighbour count."""
+    k = R[s, _LEN]
+    if k < 2:
+        return 0.0
+    ux, uy, uz, vx, vy, vz = tangent(F[s, 3], F[s, 4], F[s, 5])
+    for a in range(k):
+        q = R[s, _HEAD + a]
+        dx = F[q, 0] - F[s, 0]
+        dy = F[q, 1] - F[s, 1]
+        dz = F[q, 2] - F[s, 2]
+        t = np.arctan2(dx * vx + dy * vy + dz * vz, dx * ux + dy * uy + dz * uz)
+        b = a
+        while b > 0 and ang[b - 1] > t:
+            ang[b] = ang[b - 1]
+            b -= 1
+        ang[b] = t
+    widest = ang[0] + 2.0 * np.pi - ang[k - 1]
+    for a in range(k - 1):
+        if ang[a + 1] - ang[a] > widest:
+            widest = ang[a + 1] - ang[a]
+    return 2.0 * np.pi - widest
+
+
+@njit(cache=True)
+def _boundary_weights(F, R, sp, sq, kp, kq, ang):
+    """Where r goes when p or q is open (on the boundary): (wp, wq), or (-1, -1) when
+    neither is. r takes the open node's position, so that the boundary never moves
+    inwards; of two open nodes, the one whose fan covers the smaller angle (the sharper
+    corner of the boundary; a node marked as a corner first; on a tie, the larger entropy,
+    then q)."""
+    op = (R[sp, _FLAGS] & _OPEN) != 0
+    oq = (R[sq, _FLAGS] & _OPEN) != 0
+    if not (op or oq):
+        return -1.0, -1.0
+    if op and not oq:
+        return 1.0, 0.0
+    if oq and not op:
+        return 0.0, 1.0
+    cp = (R[sp, _FLAGS] & _CORNER) != 0
+    cq = (R[sq, _FLAGS] & _CORNER) != 0
+    if cp and not cq:
+        return 1.0, 0.0
+    if cq and not cp:
+        return 0.0, 1.0
+    ap = _open_sector(F, R, sp, ang)
+    aq = _open_sector(F, R, sq, ang)
+    if ap < aq - 1e-9 or (abs(ap - aq) <= 1e-9 and kp > kq):
+        return 1.0, 0.0
+    return 0.0, 1.0
+
+
+@njit(cache=True)
 def _key_of(w, dist, curv, cc, cterm):
     """The entropy of a node from its four terms."""
     return w[0] * dist + w[1] * curv + w[2] * cc + w[3] * cterm
@@ -398,9 +456,14 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
     """Merge nodes until ``min_alive`` remain or no pair can merge.
 
     Inputs are ``m`` nodes (leaves or nodes of an earlier build) with their
-    neighbour sets (CSR, local ids). New nodes get ids ``m, m + 1, ...`` in
-    merge order. Returns ``(k, child (k, 2), pos (k, 3), nrm (k, 3),
-    col (k, c), open (k,), ring_off (k + 1,), ring, alive (m + k,),
+    neighbour sets (CSR, local ids); ``open0`` is ``CLOSED``, ``OPEN`` (on the
+    boundary) or ``CORNER`` (open, at a corner of the boundary) per node, and
+    so is the returned ``open`` of the new nodes. A merge with an open node
+    puts r at an open node's position (:func:`_boundary_weights`): the
+    boundary of the forest's fronts stays where the points' boundary is.
+    New nodes get ids ``m, m + 1, ...`` in merge order. Returns ``(k,
+    child (k, 2), pos (k, 3), nrm (k, 3), col (k, c), open (k,),
+    ring_off (k + 1,), ring, alive (m + k,),
     out_off, out_adj)``: the ``k`` new nodes, their children and fans at
     merge time, which nodes are left, and the neighbour sets of those left
     (CSR over the alive ids in increasing order), then ``taint (k,)`` of the
@@ -449,6 +512,8 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
             fl |= _LOCKED
         if open0[x]:
             fl |= _OPEN
+        if open0[x] == CORNER:
+            fl |= _CORNER
         if taint0[x]:
             fl |= _TAINT
         R[s, _FLAGS] = fl
@@ -487,7 +552,7 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
     opos = np.empty((m, 3))
     onrm = np.empty((m, 3))
     ocol = np.zeros((m, nc))
-    oopn = np.zeros(m, np.bool_)
+    oopn = np.zeros(m, np.uint8)
     otaint = np.zeros(m, np.bool_)
     track = taint0.any()
     ring_off = np.zeros(m + 1, np.int64)
@@ -593,7 +658,10 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
         kq = F[sq, 6]
         mp = kp if kp > 0.0 else 0.0
         mq = kq if kq > 0.0 else 0.0
-        if method == MERGE_HALF_EDGE:
+        wp, wq = _boundary_weights(F, R, sp, sq, kp, kq, angbuf)
+        if wp >= 0.0:
+            pass  # on the boundary: r at the open node (docs/vdfc.md)
+        elif method == MERGE_HALF_EDGE:
             wp, wq = 0.0, 1.0
         elif mp + mq > 0.0:
             wp, wq = mp / (mp + mq), mq / (mp + mq)
@@ -627,7 +695,9 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
         F[sp, 3], F[sp, 4], F[sp, 5] = n0, n1, n2
         opos[k, 0], opos[k, 1], opos[k, 2] = x0, x1, x2
         onrm[k, 0], onrm[k, 1], onrm[k, 2] = n0, n1, n2
-        oopn[k] = is_open
+        corner = ((R[sp, _FLAGS] & _CORNER) != 0 and wp == 1.0) \
+            or ((R[sq, _FLAGS] & _CORNER) != 0 and wq == 1.0)
+        oopn[k] = CORNER if corner else (OPEN if is_open else CLOSED)
         child[k, 0] = p
         child[k, 1] = q
         need = ring_off[k] + c
@@ -644,7 +714,8 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
             R[sp, _HEAD + b] = buf[b]
         R[sp, _LEN] = c
         R[sp, _ID] = r
-        R[sp, _FLAGS] = (_OPEN if is_open else 0) | (_TAINT if tainted else 0)
+        R[sp, _FLAGS] = (_OPEN if is_open else 0) | (_TAINT if tainted else 0) \
+            | (_CORNER if corner else 0)
         otaint[k] = tainted
         R[sq, _ID] = -1
         R[sq, _FLAGS] = 0

@@ -431,6 +431,33 @@ def _check_blocks(blocks, fc: FanCloud) -> tuple[list[np.ndarray], np.ndarray]:
     return out, count >= 2
 
 
+#: An open fan that covers less than this angle (radians) marks a corner of the
+#: boundary: a square corner covers pi / 2, a straight boundary pi. A merge keeps a
+#: corner where it is (docs/vdfc.md).
+CORNER_ANGLE = 0.75 * np.pi
+
+
+def _open_codes(fc: FanCloud) -> np.ndarray:
+    """Per point: ``VK.CLOSED``, ``VK.OPEN`` or ``VK.CORNER`` (an open fan covering less
+    than :data:`CORNER_ANGLE`: the sum of the angles between its consecutive neighbours)."""
+    codes = fc.open.astype(np.uint8)
+    idx = np.flatnonzero(fc.open)
+    if len(idx) == 0:
+        return codes
+    sizes = np.diff(fc.offsets)[idx]
+    pairs = np.maximum(sizes - 1, 0)
+    owner = np.repeat(np.arange(len(idx)), pairs)
+    start = np.repeat(fc.offsets[idx] - np.concatenate([[0], np.cumsum(pairs)[:-1]]), pairs)
+    j = start + np.arange(len(owner))
+    c = fc.points[idx[owner]]
+    u = fc.points[fc.ring[j]] - c
+    v = fc.points[fc.ring[j + 1]] - c
+    ang = np.arctan2(np.linalg.norm(np.cross(u, v), axis=1), np.einsum("ij,ij->i", u, v))
+    covered = np.bincount(owner, weights=ang, minlength=len(idx))
+    codes[idx[covered < CORNER_ANGLE]] = VK.CORNER
+    return codes
+
+
 class _Nodes:
     """Growing node tables while the blocks and the final merges are put together."""
 
@@ -439,7 +466,7 @@ class _Nodes:
         self.pos = [fc.points]
         self.nrm = [fc.normals]
         self.col = [col]
-        self.open = [fc.open]
+        self.open = [_open_codes(fc)]
         self.child = [np.full((n, 2), -1, np.int64)]
         self.ring_sizes = [np.diff(fc.offsets)]
         self.ring = [fc.ring]
@@ -612,6 +639,7 @@ class ViewDependentFanCloud:
         adj_off, adj = VK.symmetric_adjacency(fc.offsets, fc.ring, n)
         width = max(WIDTH, int(np.diff(adj_off).max(initial=0)) + 8)
         nodes = _Nodes(fc, col)
+        codes = nodes.open[0]
         taint = np.zeros(n, np.bool_) if influence is None else _influence_mask(influence, n)
         nodes.taint[0] = taint
 
@@ -619,7 +647,7 @@ class ViewDependentFanCloud:
             return VK.merge_forest(fc.points[ids] if ids is not None else fc.points,
                                    fc.normals[ids] if ids is not None else fc.normals,
                                    col[ids] if ids is not None else col,
-                                   fc.open[ids] if ids is not None else fc.open,
+                                   codes[ids] if ids is not None else codes,
                                    off, nb, locked, w, dbar, method, min_alive, width,
                                    taint[ids] if ids is not None else taint)
 
@@ -683,7 +711,7 @@ class ViewDependentFanCloud:
         ring_off = np.zeros(len(pos) + 1, np.int64)
         np.cumsum(np.concatenate(nodes.ring_sizes), out=ring_off[1:])
         ring = np.concatenate(nodes.ring, dtype=np.int64)
-        opn = np.concatenate(nodes.open, dtype=bool)
+        opn = np.concatenate(nodes.open) != VK.CLOSED
         pos, nrm, col, child, ring_off, ring, opn, new = _renumber(
             n_leaves, pos, nrm, col, child, ring_off, ring, opn)
         if influenced is not None:
