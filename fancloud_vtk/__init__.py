@@ -20,6 +20,7 @@ from .core.refinement import refine, refine_hierarchy
 from .core.validation import FanCloudInputError
 from .core.vdfc import (
     ViewDependentFanCloud,
+    point_blocks,
     terrain_blocks,
     terrain_fan_cloud,
     terrain_path,
@@ -86,6 +87,7 @@ __all__ = [
     "hierarchy",
     "laplacian_smooth",
     "load",
+    "point_blocks",
     "reduce",
     "refine",
     "refine_hierarchy",

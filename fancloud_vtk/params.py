@@ -364,8 +364,9 @@ VDFC_PARAMS: tuple[Param, ...] = (
     _COLOR_ARRAY,
     Param("n_roots", "int", 1, "stop merging when this many nodes are left", range=(1, 2**62)),
     Param("block_size", "int", 0,
-          "height fields (image data): cut the grid into blocks of about this many cells a "
-          "side that share their boundary points, built in parallel (0: one block)",
+          "cut the data into blocks that share their boundary points, built in parallel "
+          "(0: one block): a height field (image data) into blocks of about this many cells "
+          "a side, a point set or mesh into spatial blocks of about its square points",
           range=(0, 2**31)),
     Param("aspect", "float", 0.0,
           "width / height of the view (0: 1, or the viewer's when it follows a plotter)",

@@ -7,6 +7,7 @@ from fancloud_vtk import (
     FanCloudInputError,
     ViewDependentFanCloud,
     build_fans,
+    point_blocks,
     terrain_blocks,
     terrain_fan_cloud,
     terrain_path,
@@ -557,9 +558,9 @@ def test_blocks_leave_no_crack_for_random_cameras(blocked, terrain):
     vd = _fresh(vb)
     rng = np.random.default_rng(7)
     size = terrain.points[:, 0].max()
-    # away from the outer border (a coarse front pulls in from it), across the block
-    # boundaries (every 21 spacings)
-    q = rng.uniform(0.75, size - 0.75, size=(2000, 2))
+    # over the whole grid, its border included, and across the block boundaries (every
+    # 21 spacings)
+    q = rng.uniform(0.0, size, size=(2000, 2))
     lines = SPACING * 21 * np.arange(1, 3)
     near = (np.abs(q[:, :1] - lines).min(axis=1) < SPACING) | (
         np.abs(q[:, 1:] - lines).min(axis=1) < SPACING)
@@ -741,3 +742,72 @@ def test_terrain_path():
         terrain_path((0, 10, 0, 4, 0, 1), 1)
     with pytest.raises(ValueError, match="bounds"):
         terrain_path((0, 10, 0), 5)
+
+
+# -- blocks of point sets ---------------------------------------------------------------
+
+
+def _terrain_points(seed=3):
+    """The test terrain's grid points as a point set, shuffled (fans from build_fans)."""
+    rng = np.random.default_rng(seed)
+    pts = terrain_fan_cloud(_heights(), spacing=SPACING).points
+    return build_fans(pts[rng.permutation(len(pts))])
+
+
+def test_point_blocks_tile_the_cloud_and_hold_every_fan_edge():
+    fc = _terrain_points()
+    blocks = point_blocks(fc, 9)
+    # a terrain is thin in z: columns, 3 x 3 of them
+    assert len(blocks) == 9
+    member = np.zeros((len(blocks), fc.n_points), bool)
+    for i, b in enumerate(blocks):
+        assert (np.diff(b) > 0).all()
+        member[i, b] = True
+    assert member.any(axis=0).all()
+    src = np.repeat(np.arange(fc.n_points), fc.fan_sizes)
+    assert (member[:, src] & member[:, fc.ring]).any(axis=0).all()  # every fan edge
+    shared = member.sum(axis=0) >= 2
+    assert 0 < shared.sum() < 0.3 * fc.n_points
+    # a closed surface is cut in 3-d
+    rng = np.random.default_rng(0)
+    p = rng.normal(size=(3000, 3))
+    p /= np.linalg.norm(p, axis=1)[:, None]
+    assert len(point_blocks(build_fans(p), 8)) == 8
+    assert len(point_blocks(fc, 1)) == 1
+    for bad in (0, -2, 2.5, True):
+        with pytest.raises(ValueError, match="n_blocks"):
+            point_blocks(fc, bad)
+
+
+def test_a_point_set_forest_in_blocks_covers_the_ground_and_keeps_its_shared_points():
+    fc = _terrain_points()
+    blocks = point_blocks(fc, 9)
+    vd = ViewDependentFanCloud.build(fc, blocks=blocks, workers=2)
+    assert vd.n_leaves == fc.n_points and len(vd.roots) == 1
+    count = np.zeros(fc.n_points, int)
+    for b in blocks:
+        count[b] += 1
+    first_united = min(vd.parent[s] for s in np.flatnonzero(count >= 2))
+    for node in np.flatnonzero(~vd.is_leaf):
+        if node < first_united:
+            assert count[vd.leaves(node)].max() == 1, "a block merged a shared point"
+    # away from the outer border: build_fans leaves a few border points of a point set
+    # with closed fans (10 of 252 here), and merges with those may cut a corner
+    rng = np.random.default_rng(5)
+    size = fc.points[:, 0].max()
+    q = rng.uniform(2 * SPACING, size - 2 * SPACING, size=(1500, 2))
+    for e_max in (0.01, 0.05, 0.2):
+        front = vd.front_arrays(ABOVE, e_max)
+        assert not _uncovered(front.points, front.triangles, q).any(), e_max
+
+
+def test_the_vdfc_verb_cuts_a_point_set_into_blocks_by_block_size():
+    from fancloud_vtk.core import verbs
+
+    fc = _terrain_points()
+    src = verbs.Source(points=fc.points)
+    one = verbs.vdfc(src)
+    cut = verbs.vdfc(src, {"block_size": 20})  # about 4096 / 400: 10 blocks
+    assert one.n_leaves == cut.n_leaves == fc.n_points
+    # the same points, another merge order: the blocks were used
+    assert not np.array_equal(one.children, cut.children)

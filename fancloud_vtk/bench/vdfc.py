@@ -142,19 +142,33 @@ def _warm(quiet: bool) -> None:
 def measure_build(fc, shape, repeat: int, quiet: bool, block: int | None = None) -> dict:
     """Best times of build_fans(points) and of the forest: without blocks, with blocks of
     ``block`` cells a side (default: an eighth of the grid's side), and with 2 x 2 blocks."""
-    from fancloud_vtk import ViewDependentFanCloud, build_fans, terrain_blocks
+    from fancloud_vtk import ViewDependentFanCloud, build_fans, point_blocks, terrain_blocks
 
     side = shape[0]
     block = block or max(1, side // 8)
     blocks = terrain_blocks(shape, (block, block))
     halves = terrain_blocks(shape, (max(1, side // 2), max(1, shape[1] // 2)))
     fans, plain, blocked, halved = [], [], [], []
+    # the same points as a point set: in a random order, fans from build_fans, blocks
+    # from point_blocks (as many as the terrain's)
+    points = fc.points[np.random.default_rng(0).permutation(fc.n_points)]
+    p_fans, p_blocked = [], []
+
+    def point_forest(pfc):
+        return ViewDependentFanCloud.build(pfc, blocks=point_blocks(pfc, len(blocks)))
+
     for i in range(repeat):
         _log(quiet, f"  build: run {i + 1} of {repeat}")
         fans.append(timed(build_fans, fc.points))
         plain.append(timed(ViewDependentFanCloud.build, fc))
         blocked.append(timed(ViewDependentFanCloud.build, fc, blocks=blocks))
         halved.append(timed(ViewDependentFanCloud.build, fc, blocks=halves))
+        gc.collect()
+        t0 = time.perf_counter()
+        pfc = build_fans(points)
+        p_fans.append(time.perf_counter() - t0)
+        p_blocked.append(timed(point_forest, pfc))
+        del pfc
     return {"n": fc.n_points, "blocks": len(blocks), "block_shape": [block, block],
             "half_blocks": len(halves), "half_block_shape": [side // 2, shape[1] // 2],
             "build_fans_times": fans, "forest_times": plain, "forest_blocks_times": blocked,
@@ -162,7 +176,10 @@ def measure_build(fc, shape, repeat: int, quiet: bool, block: int | None = None)
             "build_fans": min(fans), "forest": min(plain), "forest_blocks": min(blocked),
             "forest_halves": min(halved),
             "ratio": min(plain) / min(fans), "ratio_blocks": min(blocked) / min(fans),
-            "ratio_halves": min(halved) / min(fans)}
+            "ratio_halves": min(halved) / min(fans),
+            "point_fans_times": p_fans, "point_forest_times": p_blocked,
+            "point_fans": min(p_fans), "point_forest": min(p_blocked),
+            "ratio_points": min(p_blocked) / min(p_fans)}
 
 
 def build_rows(b: dict, data: str, repeat: int) -> list[dict]:
@@ -188,6 +205,14 @@ def build_rows(b: dict, data: str, repeat: int) -> list[dict]:
              _ok(b["ratio_blocks"] <= TARGET_BUILD_RATIO)),
         _row("build: ratio forest (no blocks) / build_fans", data,
              "best times above; for information", f"{b['ratio']:.2f}", "x"),
+        _row("build: ratio forest / build_fans, the points as a point set", data,
+             "the grid's points in a random order; build_fans(points) (runs "
+             + ", ".join(_num(t) for t in b["point_fans_times"])
+             + f" s) against ViewDependentFanCloud.build(fc, blocks=point_blocks(fc, "
+             f"{b['blocks']})), point_blocks timed with it (runs "
+             + ", ".join(_num(t) for t in b["point_forest_times"]) + f" s); {best}",
+             f"{b['ratio_points']:.2f}", "x", f"<= {TARGET_BUILD_RATIO:g}",
+             _ok(b["ratio_points"] <= TARGET_BUILD_RATIO)),
         _row("build: forest, 2 x 2 blocks", data, f"ViewDependentFanCloud.build(fc, {halves}); "
              f"{best}; {runs('forest_halves')}; ratio to build_fans "
              f"{b['ratio_halves']:.2f}; for information (bigger blocks: deeper heaps, fewer "

@@ -129,6 +129,58 @@ def restrict_adjacency(adj_off, adj, idx, n):
 
 
 @njit(cache=True)
+def point_block_members(label, offsets, ring, n_blocks):
+    """Blocks of points that share their boundary: point x is in its own block
+    ``label[x]`` and in the block of each of its fan neighbours, so that every fan edge
+    (x, y) has both points in y's block. Returns ``(off (n_blocks + 1,), members)``:
+    block b's points, ascending, are ``members[off[b]:off[b + 1]]``."""
+    n = label.shape[0]
+    seen = np.empty(64, np.int64)
+    count = np.zeros(n_blocks + 1, np.int64)
+    for x in range(n):  # two passes: count, then fill (the same distinct labels)
+        c = 0
+        lx = label[x]
+        count[lx + 1] += 1
+        for j in range(offsets[x], offsets[x + 1]):
+            b = label[ring[j]]
+            if b == lx:
+                continue
+            dup = False
+            for e in range(c):
+                if seen[e] == b:
+                    dup = True
+                    break
+            if not dup and c < seen.shape[0]:
+                seen[c] = b
+                c += 1
+                count[b + 1] += 1
+    for b in range(n_blocks):
+        count[b + 1] += count[b]
+    members = np.empty(count[n_blocks], np.int64)
+    fill = count[:n_blocks].copy()
+    for x in range(n):
+        c = 0
+        lx = label[x]
+        members[fill[lx]] = x
+        fill[lx] += 1
+        for j in range(offsets[x], offsets[x + 1]):
+            b = label[ring[j]]
+            if b == lx:
+                continue
+            dup = False
+            for e in range(c):
+                if seen[e] == b:
+                    dup = True
+                    break
+            if not dup and c < seen.shape[0]:
+                seen[c] = b
+                c += 1
+                members[fill[b]] = x
+                fill[b] += 1
+    return count, members
+
+
+@njit(cache=True)
 def edges_outside_blocks(offsets, ring, mem_off, mem):
     """Number of fan edges (p, q) with no block holding both p and q; and the first such p."""
     bad = 0

@@ -429,8 +429,10 @@ def refine(source: Source, values: dict | None = None, progress=None) -> Result:
 def vdfc(source: Source, values: dict | None = None, progress=None):
     """The view-dependent fan cloud (paper section 8): the merge forest of the input, a
     :class:`~fancloud_vtk.ViewDependentFanCloud` whose attributes ``fancloud_input`` (the
-    kind of input) and ``unreferenced_dropped`` tell its input. A height field is cut into
-    blocks of ``block_size`` (if not 0).
+    kind of input) and ``unreferenced_dropped`` tell its input. With ``block_size`` (if not
+    0) a height field is cut into blocks of that many cells a side
+    (:func:`~fancloud_vtk.terrain_blocks`), a point set or mesh into spatial blocks of
+    about ``block_size**2`` points (:func:`~fancloud_vtk.point_blocks`).
 
     Examples
     --------
@@ -441,13 +443,18 @@ def vdfc(source: Source, values: dict | None = None, progress=None):
     >>> vd.n_leaves, vd.fancloud_input
     (1200, 'height field')
     """
-    from .vdfc import ViewDependentFanCloud, terrain_blocks
+    from .vdfc import ViewDependentFanCloud, point_blocks, terrain_blocks
 
     values = check_values("vdfc", values or {})
     fc, kind = source_fan_cloud(source, values, progress)
     blocks = None
-    if kind == KIND_HEIGHT_FIELD and values["block_size"]:
-        blocks = terrain_blocks(source.heights[0].shape, values["block_size"])
+    size = values["block_size"]
+    if kind == KIND_HEIGHT_FIELD and size:
+        blocks = terrain_blocks(source.heights[0].shape, size)
+    elif size:  # about size x size points a block, as a height field's
+        blocks = point_blocks(fc, max(1, int(round(fc.n_points / float(size) ** 2))))
+        if len(blocks) == 1:
+            blocks = None
     vd = ViewDependentFanCloud.build(fc, values["merge"], weights=values["weights"],
                                      blocks=blocks, n_roots=values["n_roots"],
                                      colors=_colors(values), progress=progress)
