@@ -129,6 +129,27 @@ def restrict_adjacency(adj_off, adj, idx, n):
 
 
 @njit(cache=True)
+def _other_blocks(label, offsets, ring, x, seen):
+    """The distinct blocks of x's fan neighbours other than x's own, into ``seen``
+    (at most its length); returns how many."""
+    c = 0
+    lx = label[x]
+    for j in range(offsets[x], offsets[x + 1]):
+        b = label[ring[j]]
+        if b == lx:
+            continue
+        dup = False
+        for e in range(c):
+            if seen[e] == b:
+                dup = True
+                break
+        if not dup and c < seen.shape[0]:
+            seen[c] = b
+            c += 1
+    return c
+
+
+@njit(cache=True)
 def point_block_members(label, offsets, ring, n_blocks):
     """Blocks of points that share their boundary: point x is in its own block
     ``label[x]`` and in the block of each of its fan neighbours, so that every fan edge
@@ -137,46 +158,20 @@ def point_block_members(label, offsets, ring, n_blocks):
     n = label.shape[0]
     seen = np.empty(64, np.int64)
     count = np.zeros(n_blocks + 1, np.int64)
-    for x in range(n):  # two passes: count, then fill (the same distinct labels)
-        c = 0
-        lx = label[x]
-        count[lx + 1] += 1
-        for j in range(offsets[x], offsets[x + 1]):
-            b = label[ring[j]]
-            if b == lx:
-                continue
-            dup = False
-            for e in range(c):
-                if seen[e] == b:
-                    dup = True
-                    break
-            if not dup and c < seen.shape[0]:
-                seen[c] = b
-                c += 1
-                count[b + 1] += 1
+    for x in range(n):
+        count[label[x] + 1] += 1
+        for e in range(_other_blocks(label, offsets, ring, x, seen)):
+            count[seen[e] + 1] += 1
     for b in range(n_blocks):
         count[b + 1] += count[b]
     members = np.empty(count[n_blocks], np.int64)
     fill = count[:n_blocks].copy()
     for x in range(n):
-        c = 0
-        lx = label[x]
-        members[fill[lx]] = x
-        fill[lx] += 1
-        for j in range(offsets[x], offsets[x + 1]):
-            b = label[ring[j]]
-            if b == lx:
-                continue
-            dup = False
-            for e in range(c):
-                if seen[e] == b:
-                    dup = True
-                    break
-            if not dup and c < seen.shape[0]:
-                seen[c] = b
-                c += 1
-                members[fill[b]] = x
-                fill[b] += 1
+        members[fill[label[x]]] = x
+        fill[label[x]] += 1
+        for e in range(_other_blocks(label, offsets, ring, x, seen)):
+            members[fill[seen[e]]] = x
+            fill[seen[e]] += 1
     return count, members
 
 
