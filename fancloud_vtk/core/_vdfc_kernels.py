@@ -437,25 +437,16 @@ def _sorted_ring(F, s, nbrs, k, is_open, out, ang):
 
 
 @njit(cache=True)
-def _open_sector(F, R, s, ang):
+def _open_sector(F, R, s, ids, ang):
     """The angle an open node's fan covers: 2 pi minus the widest angular gap between
     its neighbours around its normal (pi on a straight boundary, pi / 2 at a square
-    corner). ``ang``: scratch of at least its neighbour count."""
+    corner). ``ids``, ``ang``: scratch of at least its neighbour count."""
     k = R[s, _LEN]
     if k < 2:
         return 0.0
-    ux, uy, uz, vx, vy, vz = tangent(F[s, 3], F[s, 4], F[s, 5])
     for a in range(k):
-        q = R[s, _HEAD + a]
-        dx = F[q, 0] - F[s, 0]
-        dy = F[q, 1] - F[s, 1]
-        dz = F[q, 2] - F[s, 2]
-        t = np.arctan2(dx * vx + dy * vy + dz * vz, dx * ux + dy * uy + dz * uz)
-        b = a
-        while b > 0 and ang[b - 1] > t:
-            ang[b] = ang[b - 1]
-            b -= 1
-        ang[b] = t
+        ids[a] = R[s, _HEAD + a]
+    _sorted_ring(F, s, ids, k, False, ids, ang)  # in place: each entry is read first
     widest = ang[0] + 2.0 * np.pi - ang[k - 1]
     for a in range(k - 1):
         if ang[a + 1] - ang[a] > widest:
@@ -464,7 +455,7 @@ def _open_sector(F, R, s, ang):
 
 
 @njit(cache=True)
-def _boundary_weights(F, R, sp, sq, kp, kq, ang):
+def _boundary_weights(F, R, sp, sq, kp, kq, ids, ang):
     """Where r goes when p or q is open (on the boundary): (wp, wq), or (-1, -1) when
     neither is. r takes the open node's position, so that the boundary never moves
     inwards; of two open nodes, the one whose fan covers the smaller angle (the sharper
@@ -484,8 +475,8 @@ def _boundary_weights(F, R, sp, sq, kp, kq, ang):
         return 1.0, 0.0
     if cq and not cp:
         return 0.0, 1.0
-    ap = _open_sector(F, R, sp, ang)
-    aq = _open_sector(F, R, sq, ang)
+    ap = _open_sector(F, R, sp, ids, ang)
+    aq = _open_sector(F, R, sq, ids, ang)
     if ap < aq - 1e-9 or (abs(ap - aq) <= 1e-9 and kp > kq):
         return 1.0, 0.0
     return 0.0, 1.0
@@ -705,7 +696,7 @@ def merge_forest(pos0, nrm0, col0, open0, adj_off, adj, locked0, w, dbar, method
         kq = F[sq, 6]
         mp = kp if kp > 0.0 else 0.0
         mq = kq if kq > 0.0 else 0.0
-        wp, wq = _boundary_weights(F, R, sp, sq, kp, kq, angbuf)
+        wp, wq = _boundary_weights(F, R, sp, sq, kp, kq, srt, angbuf)
         if wp >= 0.0:
             pass  # on the boundary: r at the open node (docs/vdfc.md)
         elif method == MERGE_HALF_EDGE:
