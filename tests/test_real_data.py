@@ -299,3 +299,63 @@ def test_one_noisy_sheet_is_not_split_into_two():
                      axis=0)
     _, nn = cKDTree(cube).query(cube, 37)
     assert sum(other_sheet(cube, i, nn[i, 1:], 12, 36)[0] != 0 for i in range(len(cube))) == 0
+
+
+def test_pieces_cut_off_the_fan_cloud_are_counted():
+    """One piece of fans, meshed in two: the smaller is counted as cut off."""
+    from fancloud_vtk.core.mesh import _cut_pieces
+    from fancloud_vtk.core.mesh_stats import mesh_statistics
+
+    fc = build_fans(_jittered_grid(30, 30, 1.0, seed=4))
+    mesh = fan_cloud_to_mesh(fc, close_holes=False)
+    assert mesh.stats["components"] == 1
+    assert (mesh.stats["cut_pieces"], mesh.stats["cut_points"]) == (0, 0)
+    # cut a band out of the mesh: two pieces of triangles, one piece of fans
+    x = fc.points[mesh.triangles][:, :, 0]
+    keep = (x.max(axis=1) < 9.5) | (x.min(axis=1) > 12.5)
+    tri = mesh.triangles[keep]
+    stats = mesh_statistics(fc.points, tri)
+    assert stats["components"] == 2
+    left = np.unique(tri[x[keep].max(axis=1) < 9.5])
+    pieces, points = _cut_pieces(fc, tri, stats)
+    assert pieces == 1
+    assert points == len(left)  # the left piece is the smaller: about a third of 30 columns
+
+
+def test_a_sample_split_by_the_fans_is_not_cut():
+    """Two clusters far apart: two pieces of fans, two pieces of mesh, nothing cut."""
+    a = _jittered_grid(20, 20, 1.0, seed=5)
+    b = _jittered_grid(20, 20, 1.0, seed=6) + [100.0, 0.0, 0.0]
+    fc = build_fans(np.vstack([a, b]))
+    assert len(np.unique(_fan_pieces(fc))) == 2
+    mesh = fan_cloud_to_mesh(fc)
+    assert mesh.stats["components"] == 2
+    assert (mesh.stats["cut_pieces"], mesh.stats["cut_points"]) == (0, 0)
+
+
+def _fan_pieces(fc):
+    from fancloud_vtk.core._component_kernels import fan_components
+
+    return fan_components(fc.offsets, fc.ring, fc.n_points)
+
+
+def test_the_cows_legs_and_ears_cut_off_are_warned_of():
+    """pymeshlab's cow: its legs and ears, a few points round, come apart from the body
+    and are closed off as pieces of their own. The fans join every point into one piece:
+    the mesh says how many points it cut off, and warns."""
+    pymeshlab = pytest.importorskip("pymeshlab")  # a dependency: present in CI
+    import os
+
+    from fancloud_vtk.io import read_point_cloud
+
+    path = os.path.join(os.path.dirname(pymeshlab.__file__), "tests", "sample_meshes", "cow.obj")
+    f = read_point_cloud(path)
+    with pytest.warns(DuplicatePointsWarning):
+        fc = build_fans(f.points[np.unique(f.faces)])
+    assert len(np.unique(_fan_pieces(fc))) == 1
+    with pytest.warns(DoubtfulMeshWarning) as said:  # (its holes and folds too)
+        mesh = fan_cloud_to_mesh(fc)
+    assert mesh.stats["cut_pieces"] == mesh.stats["components"] - 1 > 0
+    assert mesh.stats["cut_points"] > 0.01 * fc.n_points
+    cut = [str(w.message) for w in said if "cut off the surface" in str(w.message)]
+    assert len(cut) == 1 and f"{mesh.stats['cut_points']} points" in cut[0]

@@ -60,3 +60,25 @@ def mesh_area(points, triangles):
         fx, fy, fz = triangle_cross(points, a, b, c)
         out[t] = 0.5 * np.sqrt(fx * fx + fy * fy + fz * fz)
     return out.sum()
+
+
+@njit(cache=True)
+def fan_components(offsets, ring, n):
+    """Label of each of the ``n`` points' piece of the fan cloud (its smallest point).
+
+    Two points are in one piece when a chain of fan edges joins them (a point
+    is joined to every point of its ring).
+    """
+    parent = np.arange(n)
+    for p in range(n):
+        for j in range(offsets[p], offsets[p + 1]):
+            a = _find(parent, p)
+            b = _find(parent, ring[j])
+            if a < b:
+                parent[b] = a
+            elif b < a:
+                parent[a] = b
+    label = np.empty(n, np.int64)
+    for v in range(n):
+        label[v] = _find(parent, v)
+    return label

@@ -406,6 +406,7 @@ def fan_cloud_to_mesh(
     stats.update(mesh_statistics(fancloud.points, triangles, self_intersections=count))
     if remove_self_intersections and self_intersections:
         stats["self_intersections"] = 0  # none is left: the last round only removes
+    stats["cut_pieces"], stats["cut_points"] = _cut_pieces(fancloud, triangles, stats)
     timings["checks"] = time.perf_counter() - t0
     stats["timings"] = timings
     _warn_if_doubtful(fancloud, triangles, stats, holes=close_holes)
@@ -453,8 +454,8 @@ def _manifold_of_rings(source, spatial, fancloud, tri, stats, timings, self_inte
     for key in ("after_superfluous", "uncontested", "grown", "final"):
         stats[key] = len(tri)
     for key in ("normals_flipped", "pinch_cut", "holes_closed", "points_inserted",
-                "self_intersections_removed", "outliers"):
-        stats[key] = 0
+                "self_intersections_removed", "outliers", "cut_pieces", "cut_points"):
+        stats[key] = 0  # (one-rings: the mesh's pieces are the fans' pieces)
     stats.update(mesh_statistics(fancloud.points, tri, self_intersections=self_intersections))
     timings["checks"] = time.perf_counter() - t0
     stats["timings"] = timings
@@ -746,6 +747,33 @@ def _outliers(fc: FanCloud, triangles, min_component, far=5.0):
     return triangles, np.flatnonzero(~used & (~held | in_small))
 
 
+def _cut_pieces(fc: FanCloud, triangles, stats) -> tuple[int, int]:
+    """(pieces, points) the mesh has cut off the pieces of the fan cloud.
+
+    A piece of the fan cloud (points joined by chains of fan edges) should
+    give one piece of the mesh (points joined by chains of triangles). Where
+    the sampling is too coarse for the fans (a leg or an ear a few points
+    round, the poles of a UV sphere), the growing may cut it into several.
+    Counted: the mesh's pieces beyond the largest in each fan piece, and
+    their points. (0, 0) without looking further when the triangles are one
+    edge-connected piece.
+    """
+    if stats.get("components", 0) <= 1 or len(triangles) == 0:
+        return 0, 0
+    n = fc.n_points
+    mesh = CK.vertex_components(np.ascontiguousarray(triangles), n)
+    used = mesh >= 0
+    fan = CK.fan_components(fc.offsets, fc.ring, n)[used]
+    mesh = mesh[used]
+    pair, size = np.unique(fan * n + mesh, return_counts=True)
+    owner = pair // n
+    # per fan piece, the size of its largest mesh piece
+    largest = np.zeros(n, np.int64)
+    np.maximum.at(largest, owner, size)
+    pieces = len(pair) - len(np.unique(owner))
+    return int(pieces), int(size.sum() - largest[np.unique(owner)].sum())
+
+
 def _warn_if_doubtful(fc: FanCloud, triangles, stats, holes=True) -> None:
     """A :class:`DoubtfulMeshWarning` for each sign that the mesh is not the surface
     (holes between closed fans only when they were to be closed: ``holes``)."""
@@ -770,6 +798,12 @@ def _warn_if_doubtful(fc: FanCloud, triangles, stats, holes=True) -> None:
             said.append(f"{unexplained} boundary edges join points whose fans are closed "
                         "(holes the fans do not explain: the sampling may be too coarse, "
                         "anisotropic or thin for k neighbours)")
+    cut = stats.get("cut_points", 0)
+    if cut > max(10, 0.01 * n) or stats.get("cut_pieces", 0) >= 10:
+        said.append(f"{cut} points ({100 * cut / n:.1f}%) are in {stats['cut_pieces']} pieces "
+                    "of the mesh cut off the surface the fans join them to (thin parts, such "
+                    "as legs or ears a few points round, sampled too coarsely for k "
+                    "neighbours)")
     removed = stats.get("self_intersections_removed", 0)
     if removed > max(10, 0.01 * max(len(triangles), 1)):
         said.append(f"{removed} self-intersecting triangles were removed")
