@@ -339,7 +339,7 @@ def test_measure_corpus_counts_outliers_apart():
     r = {"method": "hand", "label": "by hand", "status": "ok", "message": "ok", "time": 0.1,
          "new_points": False, "n_triangles": len(tri), "n_vertices": len(verts),
          "stats": {"boundary_edges": 9, "holes": 3, "non_manifold_edges": 0,
-                   "non_manifold_vertices": 0},
+                   "non_manifold_vertices": 0, "components": 4},
          "distance": {"mean": 0.0, "max": 1.0}}
     render = _measure_corpus(r, data, verts, tri, True)
     c = r["corpus"]
@@ -351,7 +351,7 @@ def test_measure_corpus_counts_outliers_apart():
     assert c["distance_max_spacings"] == pytest.approx(1.0 / data["corpus"]["spacing"])
     row = corpus_rows({"methods": [r], "corpus": data["corpus"]})[0]
     assert row["unused outliers"] == f"{len(e.outliers) - 1:,}"
-    assert row["self-intersecting faces"] == "2"
+    assert row["self-intersecting faces"] == "2" and row["pieces"] == "4"
     assert json.dumps(data["corpus"])  # the JSON part has no arrays
 
 
@@ -374,6 +374,8 @@ def test_bench_mesh_on_the_corpus(tmp_path, capsys):
     ours = dict(zip(CORPUS_COLUMNS, rows[0], strict=True))
     assert ours["method"] == "fancloud_vtk (this project)" and ours["status"].startswith("ok")
     assert ours["unused outliers"] == "n/a"  # not a scan
+    assert "closed, 1 piece." in text  # the bone's own mesh
+    assert ours["pieces"] == "1"
     for key in ("self-intersecting faces", "unused points", "boundary edges",
                 "non-manifold edges", "non-manifold vertices"):
         assert int(ours[key].replace(",", "")) >= 0

@@ -151,10 +151,13 @@ def corpus_data(entry) -> dict:
     outliers and the median spacing of the input points (the distances'
     unit).
     """
+    from fancloud_vtk.core.mesh_stats import mesh_statistics
     from fancloud_vtk.corpus import boundary_edge_count, median_spacing
 
     pts = entry.points
     ref_boundary = boundary_edge_count(entry.ref_triangles)
+    ref_pieces = int(mesh_statistics(entry.ref_points, entry.ref_triangles,
+                                     self_intersections=False)["components"])
     closed = "closed" if entry.closed else f"open, {ref_boundary:,} boundary edges"
     info = {key: entry.info[key] for key in ("viewpoint", "target") if key in entry.info}
     return {"kind": "corpus", "n": len(pts), "points": pts,
@@ -166,7 +169,8 @@ def corpus_data(entry) -> dict:
             "corpus": {"name": entry.name, "kind": entry.kind, "closed": bool(entry.closed),
                        "description": entry.description, "ref_points": len(entry.ref_points),
                        "ref_triangles": len(entry.ref_triangles),
-                       "ref_boundary_edges": ref_boundary, "outliers": len(entry.outliers),
+                       "ref_boundary_edges": ref_boundary, "ref_pieces": ref_pieces,
+                       "outliers": len(entry.outliers),
                        "spacing": median_spacing(pts),
                        **{k: [float(x) for x in v] for k, v in info.items()}},
             "outliers": np.asarray(entry.outliers, dtype=np.int64)}
@@ -299,7 +303,7 @@ def compare_rows(ds: dict) -> list[dict]:
 
 #: The columns of the per-model table of a corpus entry (:func:`corpus_rows`).
 CORPUS_COLUMNS = ("method", "time (s)", "triangles", "self-intersecting faces",
-                  "unused points", "unused outliers", "boundary edges", "holes",
+                  "unused points", "unused outliers", "boundary edges", "holes", "pieces",
                   "non-manifold edges", "non-manifold vertices", "distance mean (h)",
                   "distance max (h)", "status")
 
@@ -328,6 +332,7 @@ def corpus_rows(ds: dict) -> list[dict]:
                  count(c.get("unused_points"), r["new_points"]),
                  count(c.get("unused_outliers"), r["new_points"] or not ds["corpus"]["outliers"]),
                  count(stats.get("boundary_edges")), count(stats.get("holes")),
+                 count(stats.get("components")),
                  count(stats.get("non_manifold_edges")),
                  count(stats.get("non_manifold_vertices")),
                  spacings(c.get("distance_mean_spacings")),
@@ -341,13 +346,16 @@ def _corpus_lines(ds: dict) -> list[str]:
     c = ds["corpus"]
     closed = ("closed" if c["closed"] else f"open ({c['ref_boundary_edges']:,} boundary "
               "edges)")
+    if "ref_pieces" in c:
+        closed += f", {c['ref_pieces']:,} piece" + ("s" if c["ref_pieces"] != 1 else "")
     outliers = (f", {c['outliers']} of them outliers (stray points off the surface; they "
                 "may stay unused)" if c["outliers"] else "")
     lines = [f"## {c['name']} ({c['kind']})", "",
              f"{c['description']}. Input: {ds['n']:,} points{outliers}; median spacing "
              f"h = {c['spacing']:.4g}. Reference: the model's own mesh, "
              f"{c['ref_triangles']:,} triangles on {c['ref_points']:,} vertices, {closed}. "
-             "Distances: mesh -> reference, in h."
+             "Distances: mesh -> reference, in h. Pieces: edge-connected components of "
+             "the triangles."
              + (f" Render: `{ds['render']}`." if ds.get("render") else ""),
              "", *table_lines(CORPUS_COLUMNS, corpus_rows(ds)), ""]
     ours = _find(ds, "ours")
