@@ -206,3 +206,34 @@ def test_a_sparse_row_beside_a_boundary_joins_it_and_a_far_point_does_not():
     assert np.array_equal(out[: len(tri)], tri)
     assert len(self_intersecting_pairs(pts, out)) == 0
     assert mesh_statistics(pts, out)["non_manifold_edges"] == 0
+
+
+def test_the_grid_over_the_near_triangles_finds_every_crossing():
+    """_clear looks only in the grid cells a triangle's box overlaps: the same answers as
+    testing every near triangle, on random triangles of all sizes."""
+    from fancloud_vtk.core.mesh_stats import AREA_TOL, INTERSECTION_TOL, _triangle_frames
+
+    rng = np.random.default_rng(3)
+    # small triangles all over a box, and candidates small (a point and two near it) or not
+    centres = rng.uniform(0, 10, (150, 1, 3))
+    pts = (centres + rng.uniform(-0.6, 0.6, (150, 3, 3))).reshape(-1, 3)
+    near = np.arange(450).reshape(150, 3)
+    local = np.ascontiguousarray(np.vstack([near, np.zeros((1, 3), np.int64)]))
+    frames = _triangle_frames(pts, local, AREA_TOL, INTERSECTION_TOL)
+    grid = FillK._near_grid(frames[2], frames[3], len(near))
+    assert grid[2].min() > 1  # a grid, not one cell
+    seen = np.zeros(len(near) + 1, np.int64)
+    order = np.argsort(((pts[:, None] - pts[None]) ** 2).sum(-1), axis=1)
+    agree = crossing = 0
+    for i in range(300):
+        a = int(rng.integers(0, 450))
+        b, c = (order[a, 1:3] if i % 2 else rng.integers(0, 450, 2)).tolist()
+        if len({a, b, c}) < 3:
+            continue
+        got = FillK._clear(pts, a, b, c, local, *frames, INTERSECTION_TOL, AREA_TOL, grid, seen)
+        both = np.vstack([near, [[a, b, c]]])
+        meets = any(len(near) in pair for pair in map(tuple, self_intersecting_pairs(pts, both)))
+        assert got == (not meets)
+        agree += 1
+        crossing += meets
+    assert agree > 250 and 0 < crossing < agree  # both answers were tested

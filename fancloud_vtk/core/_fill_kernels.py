@@ -48,8 +48,74 @@ def _third(triangles, vt_off, vt, a, b):
     return -1, 0
 
 
+#: cells per axis of the grid over the triangles near a loop (:func:`_near_grid`), at most
+GRID_SIDE = 32
+
+
 @njit(cache=True)
-def _clear(points, a, b, c, tri, normal, longest, lo, hi, flat, tol, area_tol):
+def _near_grid(lo, hi, n):
+    """A uniform grid over the boxes ``lo[:n]``, ``hi[:n]``: ``(origin, cell, dims,
+    offsets, members)``, each box listed in every cell it overlaps (CSR).
+
+    Cells about the size of the largest box side's mean, at most
+    ``GRID_SIDE`` per axis.
+    """
+    origin = np.empty(3)
+    top = np.empty(3)
+    for d in range(3):
+        origin[d] = np.inf
+        top[d] = -np.inf
+    side = 0.0
+    for t in range(n):
+        big = 0.0
+        for d in range(3):
+            origin[d] = min(origin[d], lo[t, d])
+            top[d] = max(top[d], hi[t, d])
+            big = max(big, hi[t, d] - lo[t, d])
+        side += big
+    side = side / max(n, 1)
+    dims = np.ones(3, np.int64)
+    cell = np.empty(3)
+    for d in range(3):
+        span = top[d] - origin[d] if n else 0.0
+        k = 1
+        if side > 0.0:
+            k = min(GRID_SIDE, max(1, int(span / side)))
+        dims[d] = k
+        cell[d] = span / k if span > 0.0 else 1.0
+    counts = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
+    for sweep in range(2):
+        if sweep == 1:
+            for c in range(1, counts.shape[0]):
+                counts[c] += counts[c - 1]
+            members = np.empty(counts[-1], np.int64)
+            fill = counts.copy()
+        for t in range(n):
+            i0, i1 = _cell_range(lo[t, 0], hi[t, 0], origin[0], cell[0], dims[0])
+            j0, j1 = _cell_range(lo[t, 1], hi[t, 1], origin[1], cell[1], dims[1])
+            k0, k1 = _cell_range(lo[t, 2], hi[t, 2], origin[2], cell[2], dims[2])
+            for i in range(i0, i1 + 1):
+                for j in range(j0, j1 + 1):
+                    for k in range(k0, k1 + 1):
+                        c = (i * dims[1] + j) * dims[2] + k
+                        if sweep == 0:
+                            counts[c + 1] += 1
+                        else:
+                            members[fill[c]] = t
+                            fill[c] += 1
+    return origin, cell, dims, counts, members
+
+
+@njit(cache=True)
+def _cell_range(a, b, origin, cell, dim):
+    """The first and last cell (clamped to the grid) of the interval [a, b] on one axis."""
+    i0 = int(np.floor((a - origin) / cell))
+    i1 = int(np.floor((b - origin) / cell))
+    return min(max(i0, 0), dim - 1), min(max(i1, 0), dim - 1)
+
+
+@njit(cache=True)
+def _clear(points, a, b, c, tri, normal, longest, lo, hi, flat, tol, area_tol, grid, seen):
     """Does triangle (a, b, c) have an area and meet none of ``tri`` but its last row?
 
     ``tri``: the mesh triangles near a loop and a last free row; ``normal``,
@@ -57,7 +123,10 @@ def _clear(points, a, b, c, tri, normal, longest, lo, hi, flat, tol, area_tol):
     :func:`fancloud_vtk.core.mesh_stats._triangle_frames` (the last row's
     are overwritten). A pair is tested as
     :func:`~fancloud_vtk.core.mesh_stats.self_intersecting_pairs` tests it:
-    sharing a vertex or an edge without overlapping is allowed.
+    sharing a vertex or an edge without overlapping is allowed. ``grid``:
+    :func:`_near_grid` of the rows but the last; only the rows in the cells
+    the triangle's box overlaps are tested (``seen``: a row's last call, so
+    that each is tested once; ``seen[-1]`` counts the calls).
     """
     slot = tri.shape[0] - 1
     tri[slot, 0] = a
@@ -78,13 +147,27 @@ def _clear(points, a, b, c, tri, normal, longest, lo, hi, flat, tol, area_tol):
         x2 = points[c, d]
         lo[slot, d] = min(x0, x1, x2) - pad
         hi[slot, d] = max(x0, x1, x2) + pad
-    for t in range(slot):
-        if flat[t]:
-            continue
-        if _boxes_apart(lo, hi, t, slot):
-            continue
-        if _pair_intersects(points, tri, normal, longest, slot, t, tol):
-            return False
+    origin, cell, dims, offsets, members = grid
+    seen[-1] += 1
+    stamp = seen[-1]
+    i0, i1 = _cell_range(lo[slot, 0], hi[slot, 0], origin[0], cell[0], dims[0])
+    j0, j1 = _cell_range(lo[slot, 1], hi[slot, 1], origin[1], cell[1], dims[1])
+    k0, k1 = _cell_range(lo[slot, 2], hi[slot, 2], origin[2], cell[2], dims[2])
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            for k in range(k0, k1 + 1):
+                cc = (i * dims[1] + j) * dims[2] + k
+                for r in range(offsets[cc], offsets[cc + 1]):
+                    t = members[r]
+                    if seen[t] == stamp:
+                        continue
+                    seen[t] = stamp
+                    if flat[t]:
+                        continue
+                    if _boxes_apart(lo, hi, t, slot):
+                        continue
+                    if _pair_intersects(points, tri, normal, longest, slot, t, tol):
+                        return False
     return True
 
 
@@ -109,6 +192,9 @@ def fill_loop(points, loop, triangles, vt_off, vt, max_angle, near, normal, long
         return empty
     # the orientation: a loop edge runs with its mesh triangle, so new triangles run against
     sign = 0
+    n_near = max(near.shape[0] - 1, 0)
+    grid = _near_grid(lo, hi, n_near)
+    seen = np.zeros(n_near + 1, np.int64)
     third = np.full(m, -1, np.int64)  # the mesh triangle's third vertex on loop edge (j, j+1)
     for j in range(m):
         a = loop[j]
@@ -181,7 +267,8 @@ def fill_loop(points, loop, triangles, vt_off, vt, max_angle, near, normal, long
                 if not ((worst < best_a - 1e-2) or (worst <= best_a + 1e-2 and total < best_s)):
                     continue
                 if near.shape[0] and not _clear(
-                    points, vi, vk, vj, near, normal, longest, lo, hi, flat, tol, area_tol
+                    points, vi, vk, vj, near, normal, longest, lo, hi, flat, tol, area_tol,
+                    grid, seen
                 ):
                     continue
                 # the smallest largest angle (to a hundredth of a radian), then the least area
