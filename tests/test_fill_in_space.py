@@ -221,7 +221,7 @@ def test_the_grid_over_the_near_triangles_finds_every_crossing():
     local = np.ascontiguousarray(np.vstack([near, np.zeros((1, 3), np.int64)]))
     frames = _triangle_frames(pts, local, AREA_TOL, INTERSECTION_TOL)
     grid = FillK._near_grid(frames[2], frames[3], len(near))
-    assert grid[2].min() > 1  # a grid, not one cell
+    assert grid[2] > 1  # a grid, not one cell
     seen = np.zeros(len(near) + 1, np.int64)
     order = np.argsort(((pts[:, None] - pts[None]) ** 2).sum(-1), axis=1)
     agree = crossing = 0

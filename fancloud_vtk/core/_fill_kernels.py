@@ -17,7 +17,13 @@ from numba import njit, prange
 
 from ._edge_kernels import has_edge
 from ._geometry_kernels import triangle_cross
-from .mesh_stats import _boxes_apart, _longest_edge_normal, _pair_intersects, _triangle_frames
+from .mesh_stats import (
+    _box_summary,
+    _boxes_apart,
+    _longest_edge_normal,
+    _pair_intersects,
+    _triangle_frames,
+)
 
 
 @njit(cache=True)
@@ -54,36 +60,22 @@ GRID_SIDE = 32
 
 @njit(cache=True)
 def _near_grid(lo, hi, n):
-    """A uniform grid over the boxes ``lo[:n]``, ``hi[:n]``: ``(origin, cell, dims,
+    """A grid of cubic cells over the boxes ``lo[:n]``, ``hi[:n]``: ``(origin, cell, side,
     offsets, members)``, each box listed in every cell it overlaps (CSR).
 
-    Cells about the size of the largest box side's mean, at most
-    ``GRID_SIDE`` per axis.
+    Cells the mean largest side of the boxes, at most ``GRID_SIDE`` per axis
+    (``side`` of them).
     """
-    origin = np.empty(3)
-    top = np.empty(3)
-    for d in range(3):
-        origin[d] = np.inf
-        top[d] = -np.inf
-    side = 0.0
-    for t in range(n):
-        big = 0.0
-        for d in range(3):
-            origin[d] = min(origin[d], lo[t, d])
-            top[d] = max(top[d], hi[t, d])
-            big = max(big, hi[t, d] - lo[t, d])
-        side += big
-    side = side / max(n, 1)
-    dims = np.ones(3, np.int64)
-    cell = np.empty(3)
-    for d in range(3):
-        span = top[d] - origin[d] if n else 0.0
-        k = 1
-        if side > 0.0:
-            k = min(GRID_SIDE, max(1, int(span / side)))
-        dims[d] = k
-        cell[d] = span / k if span > 0.0 else 1.0
-    counts = np.zeros(dims[0] * dims[1] * dims[2] + 1, np.int64)
+    if n == 0:
+        return np.zeros(3), 1.0, 1, np.zeros(2, np.int64), np.empty(0, np.int64)
+    origin, span, mean = _box_summary(lo[:n], hi[:n])
+    cell = max(mean, span / GRID_SIDE)
+    if cell <= 0.0:
+        cell = 1.0
+    side = min(GRID_SIDE, int(span / cell) + 1)
+    counts = np.zeros(side * side * side + 1, np.int64)
+    members = np.empty(0, np.int64)
+    fill = counts
     for sweep in range(2):
         if sweep == 1:
             for c in range(1, counts.shape[0]):
@@ -91,27 +83,29 @@ def _near_grid(lo, hi, n):
             members = np.empty(counts[-1], np.int64)
             fill = counts.copy()
         for t in range(n):
-            i0, i1 = _cell_range(lo[t, 0], hi[t, 0], origin[0], cell[0], dims[0])
-            j0, j1 = _cell_range(lo[t, 1], hi[t, 1], origin[1], cell[1], dims[1])
-            k0, k1 = _cell_range(lo[t, 2], hi[t, 2], origin[2], cell[2], dims[2])
+            i0, i1, j0, j1, k0, k1 = _cells(lo, hi, t, origin, cell, side)
             for i in range(i0, i1 + 1):
                 for j in range(j0, j1 + 1):
                     for k in range(k0, k1 + 1):
-                        c = (i * dims[1] + j) * dims[2] + k
+                        c = (i * side + j) * side + k
                         if sweep == 0:
                             counts[c + 1] += 1
                         else:
                             members[fill[c]] = t
                             fill[c] += 1
-    return origin, cell, dims, counts, members
+    return origin, cell, side, counts, members
 
 
 @njit(cache=True)
-def _cell_range(a, b, origin, cell, dim):
-    """The first and last cell (clamped to the grid) of the interval [a, b] on one axis."""
-    i0 = int(np.floor((a - origin) / cell))
-    i1 = int(np.floor((b - origin) / cell))
-    return min(max(i0, 0), dim - 1), min(max(i1, 0), dim - 1)
+def _cells(lo, hi, t, origin, cell, side):
+    """The first and last cell on each axis (clamped to the grid) of box ``t``."""
+    out = np.empty(6, np.int64)
+    for d in range(3):
+        a = int(np.floor((lo[t, d] - origin[d]) / cell))
+        b = int(np.floor((hi[t, d] - origin[d]) / cell))
+        out[2 * d] = min(max(a, 0), side - 1)
+        out[2 * d + 1] = min(max(b, 0), side - 1)
+    return out[0], out[1], out[2], out[3], out[4], out[5]
 
 
 @njit(cache=True)
@@ -147,16 +141,14 @@ def _clear(points, a, b, c, tri, normal, longest, lo, hi, flat, tol, area_tol, g
         x2 = points[c, d]
         lo[slot, d] = min(x0, x1, x2) - pad
         hi[slot, d] = max(x0, x1, x2) + pad
-    origin, cell, dims, offsets, members = grid
+    origin, cell, side, offsets, members = grid
     seen[-1] += 1
     stamp = seen[-1]
-    i0, i1 = _cell_range(lo[slot, 0], hi[slot, 0], origin[0], cell[0], dims[0])
-    j0, j1 = _cell_range(lo[slot, 1], hi[slot, 1], origin[1], cell[1], dims[1])
-    k0, k1 = _cell_range(lo[slot, 2], hi[slot, 2], origin[2], cell[2], dims[2])
+    i0, i1, j0, j1, k0, k1 = _cells(lo, hi, slot, origin, cell, side)
     for i in range(i0, i1 + 1):
         for j in range(j0, j1 + 1):
             for k in range(k0, k1 + 1):
-                cc = (i * dims[1] + j) * dims[2] + k
+                cc = (i * side + j) * side + k
                 for r in range(offsets[cc], offsets[cc + 1]):
                     t = members[r]
                     if seen[t] == stamp:
