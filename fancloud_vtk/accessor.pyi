@@ -80,7 +80,7 @@ class FanCloudAccessor:
         separate_sheets: bool = False,
         orient: bool = True,
         keep_unreferenced: bool = False,
-        rings: Literal["delaunay", "fans"] = "delaunay",
+        rings: Literal["auto", "delaunay", "local", "fans"] = "auto",
         close_holes: bool = True,
         max_hole: int = 32,
         max_hole_diameter: float = 6.0,

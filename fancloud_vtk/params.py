@@ -189,11 +189,13 @@ INPUT_PARAMS: tuple[Param, ...] = (
 #: ``fancloud mesh``.
 MESH_PARAMS: tuple[Param, ...] = (
     Param(
-        "rings", "choice", "delaunay",
+        "rings", "choice", "auto",
         "where the triangles come from: 'delaunay' (each fan's local Delaunay ring "
-        "in its tangent plane, from its two fan rings; default) or 'fans' (the fans "
+        "in its tangent plane, from its two fan rings), 'local' (each point's local "
+        "triangulation ring, judged in 3D), 'auto' (the Delaunay rings, and where their "
+        "mesh comes apart the better of the two meshes; default) or 'fans' (the fans "
         "themselves, as in the paper)",
-        choices=("delaunay", "fans"),
+        choices=("auto", "delaunay", "local", "fans"),
     ),
     Param(
         "close_holes", "bool", True,

@@ -163,7 +163,8 @@ def test_input_is_unchanged(cloud):
 def test_bad_parameter_values_are_rejected_without_modifying():
     mesh = FanCloudMeshFilter()
     t0 = mesh.GetMTime()
-    with pytest.raises(ValueError, match=r"rings must be one of \['delaunay', 'fans'\]"):
+    with pytest.raises(ValueError,
+                       match=r"rings must be one of \['auto', 'delaunay', 'local', 'fans'\]"):
         mesh.SetRings("voronoi")
     with pytest.raises(ValueError, match="max_hole must be between 3 and"):
         mesh.max_hole = 2
@@ -319,7 +320,8 @@ def test_accessor_mesh_signature():
     ("kwargs", "error", "match"),
     [
         ({"holes": True}, TypeError, r"unknown parameter\(s\) \['holes'\]; known:"),
-        ({"rings": "voronoi"}, ValueError, r"rings must be one of \['delaunay', 'fans'\]"),
+        ({"rings": "voronoi"}, ValueError,
+         r"rings must be one of \['auto', 'delaunay', 'local', 'fans'\]"),
         ({"max_hole": 2}, ValueError, "max_hole must be between 3 and"),
         ({"k": 2}, ValueError, "k must be between 3 and 64, got 2"),
         ({"close_holes": "yes"}, TypeError, "close_holes must be True or False"),

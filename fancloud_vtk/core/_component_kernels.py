@@ -82,3 +82,19 @@ def fan_components(offsets, ring, n):
     for v in range(n):
         label[v] = _find(parent, v)
     return label
+
+
+@njit(cache=True)
+def piece_volumes(points, triangles, piece, n_pieces, origin):
+    """Six times the signed volume under the triangles of each piece (``piece`` per
+    triangle; an empty ``piece``: one piece), seen from ``origin``: the sum of
+    ``(a - o) . ((b - a) x (c - a))``."""
+    out = np.zeros(max(n_pieces, 1))
+    one = piece.shape[0] == 0
+    for t in range(triangles.shape[0]):
+        a = triangles[t, 0]
+        cx, cy, cz = triangle_cross(points, a, triangles[t, 1], triangles[t, 2])
+        v = ((points[a, 0] - origin[0]) * cx + (points[a, 1] - origin[1]) * cy
+             + (points[a, 2] - origin[2]) * cz)
+        out[0 if one else piece[t]] += v
+    return out

@@ -3,14 +3,19 @@
 :func:`fan_cloud_to_mesh` follows the paper's three steps, with a first
 step before them and a last one after:
 
-0. **Delaunay rings** (default; ``rings='fans'`` skips it and uses the fans
-   as they are, the paper's literal behaviour). Fans built by the angle
+0. **Delaunay rings** (``rings='delaunay'``, and the first try of the default
+   ``'auto'``; ``rings='fans'`` skips it and uses the fans as they are, the
+   paper's literal behaviour). Fans built by the angle
    criterion on irregular samples agree poorly (on 20,000 random sphere
    points, 87% of their distinct triangles belong to one fan only), so
    every fan's ring is replaced by its local Delaunay ring in its tangent
    plane, from its two fan rings (no new neighbour search): closed fans by
    the hull of the inverted candidates, open fans by the hull with the
-   point itself (an open Delaunay fan).
+   point itself (an open Delaunay fan). Where the mesh grown from them comes
+   apart (``'auto'``), the mesh is made again from **local triangulation
+   rings** (``rings='local'``: each point's nearest candidates thinned spoke
+   by spoke by a 3D circumcircle rule, :mod:`._local_ring_kernels`) and the
+   better of the two is kept (docs/mesh.md, section 1b).
 1. **Distinct triangles.** All fan triangles ``(p, q_j, q_{j+1})``; the same
    three points are counted once, with the number of fans that contain the
    triangle (its *count*) and the orientation most of those fans give it.
@@ -65,12 +70,21 @@ from . import _component_kernels as CK
 from . import _csr_kernels as CsrK
 from . import _edge_kernels as EdgeK
 from . import _fill_kernels as FillK
+from . import _local_ring_kernels as LRK
 from . import _mesh_kernels as MK
 from . import _normal_kernels as NK
 from . import _ring_kernels as RingK
 from .model import FanCloud
 
 #: largest Delaunay ring kept (a point keeps its fan's ring past that); on
+#: the local triangulation rings (``rings='local'``): nearest candidates, fold allowed
+#: between two triangles, angular gap that opens a ring
+LOCAL_NEAR = 16
+LOCAL_REACH = 3.0
+LOCAL_FOLD = 0.5 * np.pi
+LOCAL_BORDER = 0.9 * np.pi
+#: the choices of ``rings``
+RINGS = ("auto", "delaunay", "local", "fans")
 #: random samples 99.99% of the rings have at most 12 points
 MAX_RING = 16
 #: The largest boundary loop (in edges) the last hole filling triangulates in space
@@ -125,7 +139,7 @@ class TriangleMesh:
 def fan_cloud_to_mesh(
     fancloud: FanCloud,
     *,
-    rings: str = "delaunay",
+    rings: str = "auto",
     close_holes: bool = True,
     max_hole: int = 32,
     max_hole_diameter: float = 6.0,
@@ -139,7 +153,7 @@ def fan_cloud_to_mesh(
     ----------
     fancloud : FanCloud
         From :func:`fancloud_vtk.build_fans` (or read from a ``.vtp``).
-    rings : {'delaunay', 'fans'}, default: 'delaunay'
+    rings : {'auto', 'delaunay', 'local', 'fans'}, default: 'auto'
         Where the triangles come from. ``'fans'``: the fan cloud's own fans,
         as in the paper. Fans that are the one-rings of a 2-manifold (every
         fan triangle in the fans of its three points, no edge in more than
@@ -150,11 +164,23 @@ def fan_cloud_to_mesh(
         (randomly) sampled surfaces the fans agree poorly: most of their
         triangles belong to one fan only (measured on 20,000 random points
         of a sphere: 87% of the distinct triangles), so the grown mesh keeps
-        many holes. ``'delaunay'``
-        (default): every fan's ring is first replaced by its local Delaunay
-        ring in its tangent plane, taken from its two fan rings (no new
-        neighbour search; an open fan gets an open Delaunay fan);
-        neighbouring points then agree on most triangles.
+        many holes. ``'delaunay'``: every fan's ring is first replaced by
+        its local Delaunay ring in its tangent plane, taken from its two fan
+        rings (no new neighbour search; an open fan gets an open Delaunay
+        fan); neighbouring points then agree on most triangles.
+        ``'local'``: every ring is replaced by its local triangulation ring
+        (:mod:`~fancloud_vtk.core._local_ring_kernels`): the nearest points
+        of its two fan rings, thinned spoke by spoke by a 3D circumcircle
+        rule; the normals are taken again from those rings' triangles and
+        the rings found again (docs/mesh.md, section 1b). The mesh's
+        normals are then those normals, turned to run with its triangles.
+        ``'auto'`` (default): the Delaunay rings; where the mesh grown from
+        them comes apart (a piece of the fan cloud in several pieces of the
+        mesh: a leg, a tail or an ear a few points round) or leaves more
+        than a tenth of the points out, the mesh is also made from the local
+        rings, and the one with fewer pieces cut off (then fewer unused
+        points, then fewer boundary edges) is kept (``stats['local_rings']``
+        says which: 1 for the local rings).
     close_holes : bool, default: True
         Triangulate the holes the growing leaves inside the surface:
         boundary loops of at most ``max_hole`` edges that do not run along
@@ -244,8 +270,8 @@ def fan_cloud_to_mesh(
     n = fancloud.n_points
     if n == 0:
         raise ValueError("the fan cloud is empty: no points to mesh")
-    if rings not in ("delaunay", "fans"):
-        raise ValueError(f"rings must be 'delaunay' or 'fans', got {rings!r}")
+    if rings not in RINGS:
+        raise ValueError(f"rings must be one of {', '.join(map(repr, RINGS))}, got {rings!r}")
     if (isinstance(min_component, bool) or not isinstance(min_component, int | np.integer)
             or min_component < 0):
         raise ValueError(f"min_component must be an integer >= 0, got {min_component!r}")
@@ -265,10 +291,11 @@ def fan_cloud_to_mesh(
     t0 = time.perf_counter()
     source = fancloud
     spatial, fancloud = _spatial_order(fancloud)
+    plain = fancloud
     timings["reorder"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    if rings == "delaunay":
+    if rings in ("auto", "delaunay"):
         width = max(MAX_RING, int(fancloud.fan_sizes.max(initial=0)))
         counts, table = RingK.delaunay_rings(
             fancloud.points,
@@ -286,11 +313,128 @@ def fan_cloud_to_mesh(
             fancloud.points, offsets, ring, fancloud.normals, fancloud.open, fancloud.rotated
         )
         timings["delaunay_rings"] = time.perf_counter() - t0
+    elif rings == "local":
+        fans, fancloud = _local_fans(fancloud)
+        timings["local_rings"] = time.perf_counter() - t0
     else:
         fans = fancloud
+    fans, fancloud, flip, tri, count, n_fan = _distinct(fans, fancloud, rings != "fans", stats,
+                                                       timings, t0)
+    if rings == "fans" and _one_rings(fans, tri, count, n_fan):
+        return _manifold_of_rings(source, spatial, fancloud, tri, stats, timings,
+                                  self_intersections)
+    triangles, cand = _grow(fancloud, tri, count, stats, timings)
+    def finish(fancloud, triangles, cand, stats, timings):
+        """Steps 4 and 5 and the outliers: (triangles, outliers)."""
+        t0 = time.perf_counter()
+        stats["holes_closed"] = 0
+        stats["points_inserted"] = 0
+        if close_holes:
+            triangles, closed, inserted = _close_holes(fancloud, triangles, cand, max_hole,
+                                                       max_hole_diameter)
+            split = 1
+            while split:  # two points over one triangle: the second goes in next round
+                triangles, split = _insert_unused(fancloud, triangles)
+                inserted += split
+            stats["holes_closed"] = closed
+            stats["points_inserted"] = inserted
+        timings["close_holes"] = time.perf_counter() - t0
+
+        t0 = time.perf_counter()
+        stats["self_intersections_removed"] = 0
+        if remove_self_intersections:
+            refill = None
+            if close_holes:
+                def refill(tris):
+                    tris, _, _ = _close_holes(fancloud, tris, cand, max_hole, max_hole_diameter)
+                    split = 1
+                    while split:
+                        tris, split = _insert_unused(fancloud, tris)
+                    return tris
+
+            triangles, stats["self_intersections_removed"] = _remove_intersections(
+                fancloud, triangles, refill
+            )
+        timings["self_intersections"] = time.perf_counter() - t0
+
+        t0 = time.perf_counter()
+        if close_holes and remove_self_intersections:
+            triangles, filled, inserted = _fill_rounds(fancloud, triangles, max_hole_diameter)
+            stats["holes_closed"] += filled
+            stats["points_inserted"] += inserted
+            triangles, attached = _attach_to_boundary(fancloud, triangles)
+            stats["points_inserted"] += attached
+        timings["fill_in_space"] = time.perf_counter() - t0
+
+        t0 = time.perf_counter()
+        triangles, outliers = _outliers(fancloud, triangles, min_component)
+        stats["outliers"] = len(outliers)
+        stats["final"] = len(triangles)
+        timings["outliers"] = time.perf_counter() - t0
+        return triangles, outliers
+
+    cut = 0
+    local_normals = rings == "local"
+    stats["local_rings"] = int(local_normals)
+    if rings == "auto":
+        # where the mesh grown from the Delaunay rings comes apart (a leg or a tail a few
+        # points round), the mesh is made again from the local triangulation rings
+        # (judged in 3D), and the better of the two is kept
+        t0 = time.perf_counter()
+        cut, _ = _cut_pieces(plain, triangles, {})
+        if not cut:  # or where it leaves many points out
+            used = np.zeros(n, bool)
+            used[triangles.ravel()] = True
+            cut = int(used.sum() < 0.9 * n)
+        timings["cut_check"] = time.perf_counter() - t0
+    triangles, outliers = finish(fancloud, triangles, cand, stats, timings)
+    if cut:
+        t0 = time.perf_counter()
+        local_stats = dict(stats)
+        local_timings = {}
+        fans2, plain2 = _local_fans(plain)
+        local_timings["local_rings"] = time.perf_counter() - t0
+        fans2, fancloud2, flip2, tri2, count2, _ = _distinct(
+            fans2, plain2, True, local_stats, local_timings, t0)
+        triangles2, cand2 = _grow(fancloud2, tri2, count2, local_stats, local_timings)
+        triangles2, outliers2 = finish(fancloud2, triangles2, cand2, local_stats, local_timings)
+        for key, value in local_timings.items():
+            timings["local_" + key if key != "local_rings" else key] = value
+        if _score(plain, triangles2, outliers2) < _score(plain, triangles, outliers):
+            local_stats["local_rings"] = 1
+            local_stats.pop("timings", None)
+            stats.update(local_stats)
+            fancloud, flip, triangles, outliers = fancloud2, flip2, triangles2, outliers2
+            local_normals = True
+
+    t0 = time.perf_counter()
+    from .mesh_stats import mesh_statistics
+
+    count = self_intersections and not remove_self_intersections
+    stats.update(mesh_statistics(fancloud.points, triangles, self_intersections=count))
+    if remove_self_intersections and self_intersections:
+        stats["self_intersections"] = 0  # none is left: the last round only removes
+    stats["cut_pieces"], stats["cut_points"] = _cut_pieces(fancloud, triangles, stats)
+    triangles, turned, stats["pieces_turned"] = _outward(fancloud.points, triangles, stats)
+    if turned.any() and not local_normals:
+        flip = flip ^ turned
+    timings["checks"] = time.perf_counter() - t0
+    stats["timings"] = timings
+    _warn_if_doubtful(fancloud, triangles, stats, holes=close_holes)
+    if local_normals:  # the normals of the local rings' triangles, running with the mesh's
+        return _mesh_of(source, spatial, triangles, stats, outliers,
+                        normals=_along(fancloud.normals, fancloud.points, triangles))
+    return _mesh_of(source, spatial, triangles, stats, outliers, flip)
+
+
+def _distinct(fans: FanCloud, fancloud: FanCloud, orient: bool, stats, timings, t0):
+    """The distinct triangles of the rings ``fans`` (step 1), after orienting the normals
+    again where two fans run a shared triangle opposite ways (``orient``). Returns
+    (fans, fancloud, flip, tri, count, n_fan), both fan clouds with the flipped normals."""
+    n = fancloud.n_points
     flip = np.zeros(n, bool)
     tri, count, n_fan, n_mixed = MK.distinct_triangles(fans.offsets, fans.ring, fans.open)
-    if rings == "delaunay" and n_mixed:
+    if orient and n_mixed:
         # fans that run a shared triangle opposite ways: orient the normals again by the
         # triangles the fans share (section 2b of docs/mesh.md)
         t1 = time.perf_counter()
@@ -304,10 +448,111 @@ def fan_cloud_to_mesh(
     stats["fan_triangles"] = int(n_fan)
     stats["distinct"] = len(tri)
     timings["distinct"] = time.perf_counter() - t0
-    if rings == "fans" and _one_rings(fans, tri, count, n_fan):
-        return _manifold_of_rings(source, spatial, fancloud, tri, stats, timings,
-                                  self_intersections)
+    return fans, fancloud, flip, tri, count, n_fan
 
+
+def _local_fans(fc: FanCloud) -> tuple[FanCloud, FanCloud]:
+    """The local triangulation rings of every point, with the normals they give:
+    the rings are found once with the fan cloud's normals, the normals replaced by
+    those of the rings' triangles, and the rings found again. Returns (rings, fan
+    cloud with the new normals)."""
+    first = _local_rings(fc, fc)
+    fc = _ring_normals(fc, first)
+    return _local_rings(fc, fc), fc
+
+
+def _outward(points, triangles, stats):
+    """Closed pieces of the mesh turned outward: a piece with no boundary edge whose
+    signed volume is negative runs inside out (its orientation came from normals that
+    pointed inward on most of it: a thin part cut off); its triangles are reversed.
+    Returns (triangles, the points of the turned pieces, how many pieces)."""
+    n = len(points)
+    turned = np.zeros(n, bool)
+    if len(triangles) == 0:
+        return triangles, turned, 0
+    triangles = np.ascontiguousarray(triangles, dtype=np.int64)
+    origin = points.mean(axis=0)
+    if stats.get("components", 1) <= 1:
+        if (stats.get("boundary_edges", 0) or CK.piece_volumes(
+                points, triangles, np.zeros(0, np.int64), 1, origin)[0] >= 0.0):
+            return triangles, turned, 0
+        turned[triangles.ravel()] = True
+        return np.ascontiguousarray(triangles[:, ::-1]), turned, 1
+    label = CK.vertex_components(triangles, n)
+    piece = label[triangles[:, 0]]
+    total = CK.piece_volumes(points, triangles, piece, n, origin)
+    open_piece = np.zeros(n, bool)
+    if stats.get("boundary_edges", 0):
+        from .mesh_stats import boundary_loops
+
+        for loop in boundary_loops(triangles):
+            open_piece[label[loop[0]]] = True
+    inside_out = (total < 0.0) & ~open_piece
+    if not inside_out.any():
+        return triangles, turned, 0
+    rev = inside_out[piece]
+    triangles = triangles.copy()
+    triangles[rev] = triangles[rev][:, ::-1]
+    turned[triangles[rev].ravel()] = True
+    return np.ascontiguousarray(triangles), turned, int(inside_out.sum())
+
+
+def _along(normals, points, triangles) -> np.ndarray:
+    """``normals`` turned to run with the triangles: negated where they point against
+    the area-weighted normal of the triangles around the point."""
+    face = np.cross(points[triangles[:, 1]] - points[triangles[:, 0]],
+                    points[triangles[:, 2]] - points[triangles[:, 0]])
+    around = np.zeros_like(normals)
+    for j in range(3):
+        np.add.at(around, triangles[:, j], face)
+    out = normals.copy()
+    out[np.einsum("ij,ij->i", around, normals) < 0] *= -1.0
+    return out
+
+
+def _score(fc: FanCloud, triangles, outliers) -> tuple[int, int, int]:
+    """How far a mesh is from one piece per piece of the fan cloud, using every point
+    that is not an outlier, closed: (pieces cut off, points unused, boundary edges);
+    lower is better."""
+    cut, _ = _cut_pieces(fc, triangles, {})
+    unused = fc.n_points - len(np.unique(triangles)) - len(outliers)
+    e = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]],
+                                triangles[:, [2, 0]]]), axis=1)
+    _, once = np.unique(e[:, 0] * fc.n_points + e[:, 1], return_counts=True)
+    return cut, unused, int((once == 1).sum())
+
+
+def _ring_normals(fc: FanCloud, fans: FanCloud) -> FanCloud:
+    """``fc`` with each normal replaced by the area-weighted normal of its ring's
+    triangles in ``fans`` (turned to agree with the old one)."""
+    n = fc.n_points
+    sizes = fans.fan_sizes
+    centre = np.repeat(np.arange(n), sizes)
+    a = fans.ring
+    nxt = np.arange(len(a)) + 1
+    last = fans.offsets[1:] - 1
+    nxt[last[sizes > 0]] = fans.offsets[:-1][sizes > 0]
+    b = a[nxt]
+    real = np.ones(len(a), bool)
+    real[last[(sizes > 0) & fans.open]] = False
+    P = fc.points
+    cr = np.cross(P[a] - P[centre], P[b] - P[centre])
+    cr[~real] = 0.0
+    nn = np.zeros((n, 3))
+    np.add.at(nn, centre, cr)
+    length = np.linalg.norm(nn, axis=1)
+    ok = length > 0
+    nn[ok] /= length[ok, None]
+    nn[~ok] = fc.normals[~ok]
+    nn[np.einsum("ij,ij->i", nn, fc.normals) < 0] *= -1.0
+    return FanCloud(fc.points, fc.offsets, fc.ring, nn, fc.open, fc.rotated)
+
+
+def _grow(fancloud: FanCloud, tri, count, stats, timings):
+    """Steps 2 and 3: the superfluous triangles out, a 2-manifold grown from the rest.
+    Returns (triangles, cand): ``cand`` the candidates and their edges, for the hole
+    closing."""
+    n = fancloud.n_points
     t0 = time.perf_counter()
     quality = MK.min_angles(fancloud.points, tri) / 60.0
     edge_uv, tri_edge, edge_off, edge_tri = EdgeK.build_edges(tri, n)
@@ -352,74 +597,59 @@ def fan_cloud_to_mesh(
     stats["grown"] = len(triangles)
     timings["grow"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    stats["holes_closed"] = 0
-    stats["points_inserted"] = 0
-    if close_holes:
-        cand = (tri, count, edge_uv, edge_off, edge_tri, v_edge_off, v_edges)
-        triangles, closed, inserted = _close_holes(fancloud, triangles, cand, max_hole,
-                                                   max_hole_diameter)
-        split = 1
-        while split:  # two points over one triangle: the second goes in next round
-            triangles, split = _insert_unused(fancloud, triangles)
-            inserted += split
-        stats["holes_closed"] = closed
-        stats["points_inserted"] = inserted
-    timings["close_holes"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    stats["self_intersections_removed"] = 0
-    if remove_self_intersections:
-        refill = None
-        if close_holes:
-            def refill(tris):
-                tris, _, _ = _close_holes(fancloud, tris, cand, max_hole, max_hole_diameter)
-                split = 1
-                while split:
-                    tris, split = _insert_unused(fancloud, tris)
-                return tris
-
-        triangles, stats["self_intersections_removed"] = _remove_intersections(
-            fancloud, triangles, refill
-        )
-    timings["self_intersections"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    if close_holes and remove_self_intersections:
-        triangles, filled, inserted = _fill_rounds(fancloud, triangles, max_hole_diameter)
-        stats["holes_closed"] += filled
-        stats["points_inserted"] += inserted
-        triangles, attached = _attach_to_boundary(fancloud, triangles)
-        stats["points_inserted"] += attached
-    timings["fill_in_space"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    triangles, outliers = _outliers(fancloud, triangles, min_component)
-    stats["outliers"] = len(outliers)
-    stats["final"] = len(triangles)
-    timings["outliers"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    from .mesh_stats import mesh_statistics
-
-    count = self_intersections and not remove_self_intersections
-    stats.update(mesh_statistics(fancloud.points, triangles, self_intersections=count))
-    if remove_self_intersections and self_intersections:
-        stats["self_intersections"] = 0  # none is left: the last round only removes
-    stats["cut_pieces"], stats["cut_points"] = _cut_pieces(fancloud, triangles, stats)
-    timings["checks"] = time.perf_counter() - t0
-    stats["timings"] = timings
-    _warn_if_doubtful(fancloud, triangles, stats, holes=close_holes)
-    return _mesh_of(source, spatial, triangles, stats, outliers, flip)
+    cand = (tri, count, edge_uv, edge_off, edge_tri, v_edge_off, v_edges)
+    return triangles, cand
 
 
-def _mesh_of(source: FanCloud, spatial, triangles, stats, outliers, flip=None) -> TriangleMesh:
+def _local_rings(fc: FanCloud, fans: FanCloud, which=None) -> FanCloud:
+    """``fans`` with the rings of the points ``which`` (all: None) replaced by their local
+    triangulation rings (:mod:`._local_ring_kernels`, candidates from the fan cloud
+    ``fc``); a point whose ring fails keeps its ring of ``fans``."""
+    n = fc.n_points
+    which = np.arange(n) if which is None else np.asarray(which, np.int64)
+    width = max(MAX_RING, int(fc.fan_sizes.max(initial=0)))
+    counts, table, is_open = LRK.local_rings(
+        fc.points, fc.normals, fc.offsets, fc.ring, width, LOCAL_NEAR, LOCAL_REACH, LOCAL_FOLD,
+        LOCAL_BORDER, 2 * numba.get_num_threads(), which)
+    sizes = fans.fan_sizes.copy()
+    ok = counts >= 0
+    sizes[which[ok]] = counts[ok]
+    op = fans.open.copy()
+    op[which[ok]] = is_open[ok]
+    offsets = np.zeros(n + 1, np.int64)
+    np.cumsum(sizes, out=offsets[1:])
+    ring = np.empty(offsets[-1], np.int64)
+    mine = np.zeros(n, bool)
+    mine[which[ok]] = True
+    rest = np.flatnonzero(~mine)
+    src = np.repeat(fans.offsets[rest] - offsets[rest], sizes[rest]) + np.repeat(
+        offsets[rest], sizes[rest]) + (np.arange(sizes[rest].sum()) - np.repeat(
+        np.cumsum(sizes[rest]) - sizes[rest], sizes[rest]))
+    dst = src - np.repeat(fans.offsets[rest] - offsets[rest], sizes[rest])
+    ring[dst] = fans.ring[src]
+    w = which[ok]
+    if len(w):
+        rows = np.repeat(np.flatnonzero(ok), counts[ok])
+        cols = np.arange(counts[ok].sum()) - np.repeat(np.cumsum(counts[ok]) - counts[ok],
+                                                        counts[ok])
+        ring[np.repeat(offsets[w], counts[ok]) + cols] = table[rows, cols]
+    return FanCloud(fc.points, offsets, ring, fc.normals, op, fc.rotated)
+
+
+def _mesh_of(source: FanCloud, spatial, triangles, stats, outliers, flip=None,
+             normals=None) -> TriangleMesh:
     """The mesh of ``triangles`` (indices in the spatial order ``spatial``) on a copy of
     the source fan cloud's points, normals and point data; the normals ``flip`` (in the
-    spatial order) negates are negated."""
-    normals = source.normals.copy()
-    if flip is not None and flip.any():
-        normals[spatial[flip]] *= -1.0
+    spatial order) negates are negated. ``normals`` (in the spatial order), when given,
+    replace the source's."""
+    if normals is None:
+        normals = source.normals.copy()
+        if flip is not None and flip.any():
+            normals[spatial[flip]] *= -1.0
+    else:
+        out = np.empty_like(source.normals)
+        out[spatial] = normals
+        normals = out
     return TriangleMesh(
         source.points.copy(),
         np.ascontiguousarray(spatial[triangles], dtype=np.int64),
@@ -454,7 +684,8 @@ def _manifold_of_rings(source, spatial, fancloud, tri, stats, timings, self_inte
     for key in ("after_superfluous", "uncontested", "grown", "final"):
         stats[key] = len(tri)
     for key in ("normals_flipped", "pinch_cut", "holes_closed", "points_inserted",
-                "self_intersections_removed", "outliers", "cut_pieces", "cut_points"):
+                "self_intersections_removed", "outliers", "cut_pieces", "cut_points",
+                "local_rings", "pieces_turned"):
         stats[key] = 0  # (one-rings: the mesh's pieces are the fans' pieces)
     stats.update(mesh_statistics(fancloud.points, tri, self_intersections=self_intersections))
     timings["checks"] = time.perf_counter() - t0
@@ -713,9 +944,16 @@ def _outliers(fc: FanCloud, triangles, min_component, far=5.0):
             d, j = cKDTree(fc.points).query(fc.points[cand], k=kq)
             d = d.reshape(len(cand), -1)
             j = j.reshape(len(cand), -1)
-            lim = far * _ring_spacing(fc, cand)
+            # near: within far times the smaller local spacing of the two points (a stray
+            # cluster's own spacing may be coarse; the surface's next to it is not)
+            near = np.unique(j)
+            spacing = np.zeros(n)
+            spacing[near] = _ring_spacing(fc, near)
+            spacing[cand] = _ring_spacing(fc, cand)
+            lim = far * np.minimum(spacing[cand][:, None], spacing[j])
+            lim[spacing[j] == 0] = far * spacing[cand][np.nonzero(spacing[j] == 0)[0]]
             lj = np.maximum(label[j], 0)
-            other = (label[j] >= 0) & (lj != label[cand][:, None]) & (d <= lim[:, None])
+            other = (label[j] >= 0) & (lj != label[cand][:, None]) & (d <= lim)
             # small pieces near each other are one cluster (the growing or the filling may
             # have cut a cluster, or a bit of surface, in pieces): a union of their labels
             group = np.arange(n)
@@ -756,13 +994,16 @@ def _cut_pieces(fc: FanCloud, triangles, stats) -> tuple[int, int]:
     round, the poles of a UV sphere), the growing may cut it into several.
     Counted: the mesh's pieces beyond the largest in each fan piece, and
     their points. (0, 0) without looking further when the triangles are one
-    edge-connected piece.
+    edge-connected piece (``stats['components']``; without it, the triangles' pieces
+    are counted here).
     """
-    if stats.get("components", 0) <= 1 or len(triangles) == 0:
+    if stats.get("components", 2) <= 1 or len(triangles) == 0:
         return 0, 0
     n = fc.n_points
     mesh = CK.vertex_components(np.ascontiguousarray(triangles), n)
     used = mesh >= 0
+    if "components" not in stats and (mesh[used] == mesh[used][0]).all():
+        return 0, 0  # one piece
     fan = CK.fan_components(fc.offsets, fc.ring, n)[used]
     mesh = mesh[used]
     pair, size = np.unique(fan * n + mesh, return_counts=True)
