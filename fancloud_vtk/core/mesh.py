@@ -174,13 +174,13 @@ def fan_cloud_to_mesh(
         rule; the normals are taken again from those rings' triangles and
         the rings found again (docs/mesh.md, section 1b). The mesh's
         normals are then those normals, turned to run with its triangles.
-        ``'auto'`` (default): the Delaunay rings; where the mesh grown from
+        ``'auto'`` (default): the Delaunay rings; where the mesh made from
         them comes apart (a piece of the fan cloud in several pieces of the
         mesh: a leg, a tail or an ear a few points round) or leaves more
-        than a tenth of the points out, the mesh is also made from the local
-        rings, and the one with fewer pieces cut off (then fewer unused
-        points, then fewer boundary edges) is kept (``stats['local_rings']``
-        says which: 1 for the local rings).
+        than a tenth of the points out (outliers apart), the mesh is also
+        made from the local rings, and the one with fewer pieces cut off
+        (then fewer unused points, then fewer boundary edges) is kept
+        (``stats['local_rings']`` says which: 1 for the local rings).
     close_holes : bool, default: True
         Triangulate the holes the growing leaves inside the surface:
         boundary loops of at most ``max_hole`` edges that do not run along
@@ -373,21 +373,21 @@ def fan_cloud_to_mesh(
         timings["outliers"] = time.perf_counter() - t0
         return triangles, outliers
 
-    cut = 0
     local_normals = rings == "local"
     stats["local_rings"] = int(local_normals)
+    triangles, outliers = finish(fancloud, triangles, cand, stats, timings)
+    cut = 0
     if rings == "auto":
-        # where the mesh grown from the Delaunay rings comes apart (a leg or a tail a few
-        # points round), the mesh is made again from the local triangulation rings
-        # (judged in 3D), and the better of the two is kept
+        # where the mesh from the Delaunay rings comes apart (a leg or a tail a few points
+        # round) or leaves many points out, the mesh is made again from the local
+        # triangulation rings (judged in 3D), and the better of the two is kept
         t0 = time.perf_counter()
         cut, _ = _cut_pieces(plain, triangles, {})
-        if not cut:  # or where it leaves many points out
+        if not cut:
             used = np.zeros(n, bool)
             used[triangles.ravel()] = True
-            cut = int(used.sum() < 0.9 * n)
+            cut = int(n - used.sum() - len(outliers) > 0.1 * n)
         timings["cut_check"] = time.perf_counter() - t0
-    triangles, outliers = finish(fancloud, triangles, cand, stats, timings)
     if cut:
         t0 = time.perf_counter()
         local_stats = dict(stats)
