@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit, prange
 
 from ._geometry_kernels import TWO_PI, atan2_2pi, dist2, tangent
+from ._ring_kernels import two_rings, two_rings_cap
 
 #: a triangle whose circumradius is more than this many times its inradius's double is
 #: degenerate: its longest spoke goes first
@@ -97,6 +98,22 @@ def _unfold_convex(points, a, b, c, d):
         return False
     x = tb + (td - tb) * hb / (hb + hd)
     return 0.0 < x < lac
+
+
+@njit(cache=True)
+def _order_by(key, tie, order, m):
+    """``order[:m]``: 0..m-1 sorted by ``key``, then ``tie`` (insertion sort: m is a
+    few dozen)."""
+    for t in range(m):
+        order[t] = t
+    for t in range(1, m):
+        v = order[t]
+        j = t - 1
+        while j >= 0 and (key[order[j]] > key[v]
+                          or (key[order[j]] == key[v] and tie[order[j]] > tie[v])):
+            order[j + 1] = order[j]
+            j -= 1
+        order[j + 1] = v
 
 
 @njit(cache=True)
@@ -213,16 +230,7 @@ def local_ring(points, normals, p, cand, m, n_near, reach, crit, border_angle, d
                 dist[kept] = dist[t]
                 kept += 1
         mm = kept
-    for t in range(mm):
-        order[t] = t
-    for t in range(1, mm):  # insertion sort by (distance, index)
-        v = order[t]
-        j = t - 1
-        while j >= 0 and (dist[order[j]] > dist[v]
-                          or (dist[order[j]] == dist[v] and cand[order[j]] > cand[v])):
-            order[j + 1] = order[j]
-            j -= 1
-        order[j + 1] = v
+    _order_by(dist, cand, order, mm)  # by distance, then point
     k = min(mm, n_near)
     if k < 2:
         return -1, False
@@ -241,16 +249,7 @@ def local_ring(points, normals, p, cand, m, n_near, reach, crit, border_angle, d
         pid[t] = q
     if normalizer <= 0.0:
         normalizer = 1.0
-    for t in range(k):
-        order[t] = t
-    for t in range(1, k):  # insertion sort by (angle, point)
-        v = order[t]
-        j = t - 1
-        while j >= 0 and (ang[order[j]] > ang[v]
-                          or (ang[order[j]] == ang[v] and pid[order[j]] > pid[v])):
-            order[j + 1] = order[j]
-            j -= 1
-        order[j + 1] = v
+    _order_by(ang, pid, order, k)  # by angle, then point
     # fan positions 0..k-1 by angle
     for t in range(k):
         cand[t] = pid[order[t]]
@@ -324,14 +323,7 @@ def local_rings(points, normals, offsets, ring, max_ring, n_near, reach, crit, b
     is_open = np.zeros(w, np.bool_)
     table = np.empty((w, max_ring), np.int64)
     n_chunks = max(1, min(w, n_chunks))
-    cap = 16
-    for i in range(w):
-        p = which[i]
-        two = 2
-        for a in range(offsets[p], offsets[p + 1]):
-            q = ring[a]
-            two += 1 + offsets[q + 1] - offsets[q]
-        cap = max(cap, two)
+    cap = two_rings_cap(offsets, ring, which, 16)
     for ch in prange(n_chunks):
         cand = np.empty(cap, np.int64)
         dist = np.empty(cap)
@@ -345,17 +337,7 @@ def local_rings(points, normals, offsets, ring, max_ring, n_near, reach, crit, b
         stamp = np.full(n, -1, np.int32)
         for i in range((w * ch) // n_chunks, (w * (ch + 1)) // n_chunks):
             p = which[i]
-            m = 0
-            stamp[p] = p
-            for a in range(offsets[p], offsets[p + 1]):
-                q = ring[a]
-                for b in range(offsets[q] - 1, offsets[q + 1]):
-                    s = q if b < offsets[q] else ring[b]
-                    if stamp[s] == p or m >= cap - 1:
-                        continue
-                    stamp[s] = p
-                    cand[m] = s
-                    m += 1
+            m = two_rings(offsets, ring, p, stamp, cand)
             h, op = local_ring(points, normals, p, cand, m, n_near, reach, crit, border_angle,
                                dist, ang, order, pid, prv, nxt, stable, gain, table[i])
             counts[i] = h

@@ -218,14 +218,10 @@ def open_ring(xs, ys, mm, cand, order, hull, max_ring, out):
 
 
 @njit(cache=True)
-def delaunay_ring(
-    points, normals, offsets, ring, is_open, p, max_ring, cand, xs, ys, order, hull, stamp, table,
-    steep,
-):
-    """Write p's local Delaunay ring to table[p]; return its size, or -1 (keep the fan's ring).
-
-    ``stamp`` (n,) marks the candidates already taken for p (value p).
-    """
+def two_rings(offsets, ring, p, stamp, cand):
+    """p's fan neighbours and theirs (p left out), each once, into ``cand``; returns
+    their number (at most ``len(cand) - 1``). ``stamp`` (n,) marks the points taken for
+    p (value p)."""
     cap = cand.shape[0]
     m = 0
     stamp[p] = p
@@ -238,6 +234,34 @@ def delaunay_ring(
             stamp[s] = p
             cand[m] = s
             m += 1
+    return m
+
+
+@njit(cache=True)
+def two_rings_cap(offsets, ring, which, least):
+    """A candidate buffer size that holds the two rings of every point of ``which``
+    (at least ``least``)."""
+    cap = least
+    for i in range(which.shape[0]):
+        p = which[i]
+        two = 2
+        for a in range(offsets[p], offsets[p + 1]):
+            q = ring[a]
+            two += 1 + offsets[q + 1] - offsets[q]
+        cap = max(cap, two)
+    return cap
+
+
+@njit(cache=True)
+def delaunay_ring(
+    points, normals, offsets, ring, is_open, p, max_ring, cand, xs, ys, order, hull, stamp, table,
+    steep,
+):
+    """Write p's local Delaunay ring to table[p]; return its size, or -1 (keep the fan's ring).
+
+    ``stamp`` (n,) marks the candidates already taken for p (value p).
+    """
+    m = two_rings(offsets, ring, p, stamp, cand)
     mm = inversions(points, normals, p, cand, m, xs, ys, steep)
     if is_open:
         return open_ring(xs, ys, mm, cand, order, hull, max_ring, table[p])
@@ -271,13 +295,7 @@ def delaunay_rings(points, normals, offsets, ring, is_open, max_ring, n_chunks, 
     n_chunks = max(1, min(n, n_chunks))
     ident = seq.shape[0] == 0
     # the candidate buffers hold every point's two rings (at least 256 entries, as before)
-    cap = 256
-    for p in range(n):
-        two = 2
-        for a in range(offsets[p], offsets[p + 1]):
-            q = ring[a]
-            two += 1 + offsets[q + 1] - offsets[q]
-        cap = max(cap, two)
+    cap = two_rings_cap(offsets, ring, np.arange(n), 256)
     for ch in prange(n_chunks):
         cand = np.empty(cap, np.int64)
         xs = np.empty(cap)
