@@ -1,22 +1,21 @@
 """Numba kernels of the local triangulation rings (``rings='local'`` of the mesh).
 
 A point's ring is found as surface triangulators that work point by point
-find it: its nearest candidates (from its two rings in the fan cloud, none
-farther than ``reach`` times the sixth nearest, none past a jump of three
-times in the sorted distances), sorted by angle in the tangent plane, form a
-first fan; then, one at a time, the
-spoke whose removal gains the most leaves it, until every spoke left is
-*stable*. A spoke ``p-c`` between ``d`` (before) and ``b`` (after) is
-stable when removing it would leave a triangle wider than pi, when the
-quadrilateral ``p b c d`` unfolded about ``p-c`` is not convex, or when
-``p-c`` is the better diagonal by the 3D circumcircle rule and the two
-triangles fold less than ``crit``. Its gain is the circumcircle profit
-(relative to the nearest candidate's squared distance), the fold beyond
-``crit``, the sine of ``c``'s angle out of the tangent plane, and how far
-``c``'s normal and the two triangles' normal turn from ``p``'s. Unlike the
-tangent-plane Delaunay ring, it judges triangles in 3D, so on a thin part
-(a leg, a tail, an ear) a candidate across the part does not win by its
-projection. The first angular gap wider than ``border`` makes the ring open.
+find it: its nearest candidates (from its two rings in the fan cloud, within
+reach: :func:`._ring_kernels.within_reach`), sorted by angle in the tangent
+plane, form a first fan; then, one at a time, the spoke whose removal gains
+the most leaves it, until every spoke left is *stable*. A spoke ``p-c``
+between ``d`` (before) and ``b`` (after) is stable when removing it would
+leave a triangle wider than pi, when the quadrilateral ``p b c d`` unfolded
+about ``p-c`` is not convex, or when ``p-c`` is the better diagonal by the
+3D circumcircle rule and the two triangles fold less than ``crit``. Its gain
+is the circumcircle profit (relative to the nearest candidate's squared
+distance), the fold beyond ``crit``, the sine of ``c``'s angle out of the
+tangent plane, and how far ``c``'s normal and the two triangles' normal turn
+from ``p``'s. Unlike the tangent-plane Delaunay ring, it judges triangles in
+3D, so on a thin part (a leg, a tail, an ear) a candidate across the part
+does not win by its projection. The first angular gap wider than ``border``
+makes the ring open.
 """
 
 from __future__ import annotations
@@ -25,7 +24,7 @@ import numpy as np
 from numba import njit, prange
 
 from ._geometry_kernels import TWO_PI, atan2_2pi, dist2, tangent
-from ._ring_kernels import two_rings, two_rings_cap
+from ._ring_kernels import two_rings, two_rings_cap, within_reach
 
 #: a triangle whose circumradius is more than this many times its inradius's double is
 #: degenerate: its longest spoke goes first
@@ -33,11 +32,6 @@ DEGENERATE = 1e3
 #: candidates whose normal makes more than this cosine with the point's are dropped
 FACING = -0.3
 INF = np.inf
-#: the spokes are limited to ``reach`` times the distance of this nearest candidate
-REACH_RANK = 6
-#: a candidate this many times farther than the one before it (past the third) ends the
-#: neighbourhood
-JUMP = 3.0
 
 
 @njit(cache=True)
@@ -191,7 +185,7 @@ def local_ring(points, normals, p, cand, m, n_near, reach, crit, border_angle, d
     keeps its fan (fewer than two spokes left, or a ring longer than ``out``).
 
     ``cand[:m]``: the candidates; the ``n_near`` nearest within ``reach`` (see
-    :func:`local_rings`) make the first fan.
+    :func:`._ring_kernels.within_reach`) make the first fan.
     """
     # drop facing and coincident candidates
     mm = 0
@@ -203,33 +197,8 @@ def local_ring(points, normals, p, cand, m, n_near, reach, crit, border_angle, d
         if dn < FACING or d2 <= 0.0:
             continue
         cand[mm] = q
-        dist[mm] = d2
         mm += 1
-    if reach > 0.0 and mm > 0:
-        # no spoke longer than ``reach`` times the distance of the REACH_RANK-th nearest
-        for t in range(mm):
-            ang[t] = dist[t]
-        for t in range(1, mm):  # the distances, sorted
-            v = ang[t]
-            j = t - 1
-            while j >= 0 and ang[j] > v:
-                ang[j + 1] = ang[j]
-                j -= 1
-            ang[j + 1] = v
-        far = reach * reach * ang[min(mm, REACH_RANK) - 1]
-        # past the third nearest, a jump in the sorted distances ends the neighbourhood: a
-        # few points apart from the rest (a stray cluster) are not fanned to the rest
-        for t in range(2, mm - 1):
-            if ang[t + 1] > JUMP * JUMP * ang[t]:
-                far = min(far, ang[t])
-                break
-        kept = 0
-        for t in range(mm):
-            if dist[t] <= far:
-                cand[kept] = cand[t]
-                dist[kept] = dist[t]
-                kept += 1
-        mm = kept
+    mm = within_reach(points, p, cand, mm, dist, ang, reach)
     _order_by(dist, cand, order, mm)  # by distance, then point
     k = min(mm, n_near)
     if k < 2:

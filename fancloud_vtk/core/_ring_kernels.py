@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from ._geometry_kernels import tangent
+from ._geometry_kernels import dist2, tangent
 
 #: a candidate whose normal makes more than 120 degrees with the point's is on the
 #: other side of a thin part: never a Delaunay neighbour
@@ -26,6 +26,11 @@ STEEP = np.tan(np.radians(70.0)) ** 2
 NOT_STEEP = np.inf
 #: a candidate whose normal is more than 60 degrees from the point's (see ``STEEP``)
 TURNED = 0.5
+#: :func:`within_reach`: candidates are limited to ``reach`` times the distance of this
+#: nearest one, and a candidate this many times farther than the one before it (past the
+#: third) ends the list
+REACH_RANK = 6
+JUMP = 3.0
 
 
 @njit(cache=True)
@@ -218,6 +223,45 @@ def open_ring(xs, ys, mm, cand, order, hull, max_ring, out):
 
 
 @njit(cache=True)
+def within_reach(points, p, cand, m, dist, scratch, reach):
+    """Compact ``cand[:m]`` to the candidates within reach of p, their squared distances
+    in ``dist``; returns their number. Within reach: no farther than ``reach`` times the
+    distance of the :data:`REACH_RANK`-th nearest, and not past a jump (among the
+    :data:`REACH_RANK` + 1 nearest, past the third, a candidate more than :data:`JUMP`
+    times as far as the one before it ends the list: a few points apart from the rest
+    are not joined to the rest; more of them, and the reach holds them apart). ``reach``
+    0: all of them (their distances still in ``dist``)."""
+    for t in range(m):
+        dist[t] = dist2(points, cand[t], p)
+    if reach <= 0.0 or m == 0:
+        return m
+    # the REACH_RANK + 1 smallest distances, sorted, in scratch[:top]
+    top = 0
+    for t in range(m):
+        v = dist[t]
+        if top == REACH_RANK + 1 and v >= scratch[top - 1]:
+            continue
+        j = min(top, REACH_RANK) - 1
+        while j >= 0 and scratch[j] > v:
+            scratch[j + 1] = scratch[j]
+            j -= 1
+        scratch[j + 1] = v
+        top = min(top + 1, REACH_RANK + 1)
+    far = reach * reach * scratch[min(m, REACH_RANK) - 1]
+    for t in range(2, top - 1):
+        if scratch[t + 1] > JUMP * JUMP * scratch[t]:
+            far = min(far, scratch[t])
+            break
+    kept = 0
+    for t in range(m):
+        if dist[t] <= far:
+            cand[kept] = cand[t]
+            dist[kept] = dist[t]
+            kept += 1
+    return kept
+
+
+@njit(cache=True)
 def two_rings(offsets, ring, p, stamp, cand):
     """p's fan neighbours and theirs (p left out), each once, into ``cand``; returns
     their number (at most ``len(cand) - 1``). ``stamp`` (n,) marks the points taken for
@@ -255,13 +299,15 @@ def two_rings_cap(offsets, ring, which, least):
 @njit(cache=True)
 def delaunay_ring(
     points, normals, offsets, ring, is_open, p, max_ring, cand, xs, ys, order, hull, stamp, table,
-    steep,
+    steep, reach=0.0,
 ):
     """Write p's local Delaunay ring to table[p]; return its size, or -1 (keep the fan's ring).
 
     ``stamp`` (n,) marks the candidates already taken for p (value p).
     """
     m = two_rings(offsets, ring, p, stamp, cand)
+    if reach > 0.0:
+        m = within_reach(points, p, cand, m, xs, ys, reach)
     mm = inversions(points, normals, p, cand, m, xs, ys, steep)
     if is_open:
         return open_ring(xs, ys, mm, cand, order, hull, max_ring, table[p])
@@ -269,7 +315,8 @@ def delaunay_ring(
 
 
 @njit(cache=True, parallel=True)
-def delaunay_rings(points, normals, offsets, ring, is_open, max_ring, n_chunks, seq, steep):
+def delaunay_rings(points, normals, offsets, ring, is_open, max_ring, n_chunks, seq, steep,
+                   reach=0.0):
     """Each closed fan's ring replaced by its local Delaunay ring.
 
     The candidates of point p are its fan neighbours and theirs (two rings
@@ -321,6 +368,7 @@ def delaunay_rings(points, normals, offsets, ring, is_open, max_ring, n_chunks, 
                 stamp,
                 table,
                 steep,
+                reach,
             )
             if h < 0:  # keep the fan's own ring
                 h = offsets[p + 1] - offsets[p]

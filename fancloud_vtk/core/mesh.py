@@ -9,8 +9,8 @@ step before them and a last one after:
    criterion on irregular samples agree poorly (on 20,000 random sphere
    points, 87% of their distinct triangles belong to one fan only), so
    every fan's ring is replaced by its local Delaunay ring in its tangent
-   plane, from its two fan rings (no new neighbour search): closed fans by
-   the hull of the inverted candidates, open fans by the hull with the
+   plane, from its two fan rings within reach (no new neighbour search):
+   closed fans by the hull of the inverted candidates, open fans by the hull with the
    point itself (an open Delaunay fan). Where the mesh grown from them comes
    apart (``'auto'``), the mesh is made again from **local triangulation
    rings** (``rings='local'``: each point's nearest candidates thinned spoke
@@ -81,6 +81,7 @@ from .model import FanCloud
 #: between two triangles, angular gap that opens a ring
 LOCAL_NEAR = 16
 LOCAL_REACH = 3.0
+DELAUNAY_REACH = 3.0
 LOCAL_FOLD = 0.5 * np.pi
 LOCAL_BORDER = 0.9 * np.pi
 #: the choices of ``rings``
@@ -307,6 +308,7 @@ def fan_cloud_to_mesh(
             2 * numba.get_num_threads(),
             np.zeros(0, np.int64),  # already in the grid's order
             RingK.NOT_STEEP,
+            DELAUNAY_REACH,
         )
         offsets, ring = RingK.compact_rings(counts, table)
         fans = FanCloud(
