@@ -223,14 +223,15 @@ def open_ring(xs, ys, mm, cand, order, hull, max_ring, out):
 
 
 @njit(cache=True)
-def within_reach(points, p, cand, m, dist, scratch, reach):
+def within_reach(points, p, cand, m, dist, scratch, reach, own=None):
     """Compact ``cand[:m]`` to the candidates within reach of p, their squared distances
     in ``dist``; returns their number. Within reach: no farther than ``reach`` times the
     distance of the :data:`REACH_RANK`-th nearest, and not past a jump (among the
     :data:`REACH_RANK` + 1 nearest, past the third, a candidate more than :data:`JUMP`
     times as far as the one before it ends the list: a few points apart from the rest
     are not joined to the rest; more of them, and the reach holds them apart). ``reach``
-    0: all of them (their distances still in ``dist``)."""
+    0: all of them (their distances still in ``dist``). ``own`` (n,), if given: the
+    candidates it marks with p are kept whatever their distance."""
     for t in range(m):
         dist[t] = dist2(points, cand[t], p)
     if reach <= 0.0 or m == 0:
@@ -254,11 +255,44 @@ def within_reach(points, p, cand, m, dist, scratch, reach):
             break
     kept = 0
     for t in range(m):
-        if dist[t] <= far:
+        if dist[t] <= far or (own is not None and own[cand[t]] == p):
             cand[kept] = cand[t]
             dist[kept] = dist[t]
             kept += 1
     return kept
+
+
+@njit(cache=True)
+def ring_jump(points, offsets, ring, p, scratch):
+    """The squared distance of p's fan neighbour before a jump (:func:`within_reach`'s
+    rule on p's own ring; ``inf`` if there is none). ``scratch`` holds at least
+    :data:`REACH_RANK` + 1 numbers."""
+    top = 0
+    for a in range(offsets[p], offsets[p + 1]):
+        v = dist2(points, ring[a], p)
+        if top == REACH_RANK + 1 and v >= scratch[top - 1]:
+            continue
+        j = min(top, REACH_RANK) - 1
+        while j >= 0 and scratch[j] > v:
+            scratch[j + 1] = scratch[j]
+            j -= 1
+        scratch[j + 1] = v
+        top = min(top + 1, REACH_RANK + 1)
+    for t in range(2, top - 1):
+        if scratch[t + 1] > JUMP * JUMP * scratch[t]:
+            return scratch[t]
+    return np.inf
+
+
+@njit(cache=True, parallel=True)
+def ring_jumps(points, offsets, ring):
+    """:func:`ring_jump` of every point."""
+    n = points.shape[0]
+    out = np.empty(n)
+    for p in prange(n):
+        scratch = np.empty(REACH_RANK + 1)
+        out[p] = ring_jump(points, offsets, ring, p, scratch)
+    return out
 
 
 @njit(cache=True)
@@ -299,15 +333,26 @@ def two_rings_cap(offsets, ring, which, least):
 @njit(cache=True)
 def delaunay_ring(
     points, normals, offsets, ring, is_open, p, max_ring, cand, xs, ys, order, hull, stamp, table,
-    steep, reach=0.0,
+    steep, reach=0.0, own=None, jumps=None,
 ):
     """Write p's local Delaunay ring to table[p]; return its size, or -1 (keep the fan's ring).
 
-    ``stamp`` (n,) marks the candidates already taken for p (value p).
+    ``stamp`` (n,) marks the candidates already taken for p (value p). With ``reach``
+    (see :func:`within_reach`), ``own`` (n,) and ``jumps`` (:func:`ring_jumps`) given,
+    a fan neighbour q of p stays a candidate past the reach when neither p's nor q's
+    own ring has a jump before it (the long edges of a mesh, as in a fan-triangulated
+    polygon; not a fan that reached from a stray cluster to a surface). ``own`` marks
+    them (value p).
     """
     m = two_rings(offsets, ring, p, stamp, cand)
     if reach > 0.0:
-        m = within_reach(points, p, cand, m, xs, ys, reach)
+        if own is not None:
+            for a in range(offsets[p], offsets[p + 1]):
+                q = ring[a]
+                d = dist2(points, q, p)
+                if d <= jumps[p] and d <= jumps[q]:
+                    own[q] = p
+        m = within_reach(points, p, cand, m, xs, ys, reach, own)
     mm = inversions(points, normals, p, cand, m, xs, ys, steep)
     if is_open:
         return open_ring(xs, ys, mm, cand, order, hull, max_ring, table[p])
@@ -343,6 +388,7 @@ def delaunay_rings(points, normals, offsets, ring, is_open, max_ring, n_chunks, 
     ident = seq.shape[0] == 0
     # the candidate buffers hold every point's two rings (at least 256 entries, as before)
     cap = two_rings_cap(offsets, ring, np.arange(n), 256)
+    jumps = ring_jumps(points, offsets, ring) if reach > 0.0 else np.zeros(0)
     for ch in prange(n_chunks):
         cand = np.empty(cap, np.int64)
         xs = np.empty(cap)
@@ -350,6 +396,7 @@ def delaunay_rings(points, normals, offsets, ring, is_open, max_ring, n_chunks, 
         order = np.empty(cap, np.int64)
         hull = np.empty(cap + 1, np.int64)
         stamp = np.full(n, -1, np.int32)
+        own = np.full(n, -1, np.int32)
         for i in range((n * ch) // n_chunks, (n * (ch + 1)) // n_chunks):
             p = i if ident else seq[i]
             h = delaunay_ring(
@@ -369,6 +416,8 @@ def delaunay_rings(points, normals, offsets, ring, is_open, max_ring, n_chunks, 
                 table,
                 steep,
                 reach,
+                own,
+                jumps,
             )
             if h < 0:  # keep the fan's own ring
                 h = offsets[p + 1] - offsets[p]
