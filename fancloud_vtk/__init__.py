@@ -25,6 +25,7 @@ from .core.vdfc import (
     terrain_fan_cloud,
     terrain_path,
 )
+from .distributed import tile_boxes, tiled_fans
 from .io import DroppedArrayWarning
 
 __version__ = "0.1.0"
@@ -95,5 +96,7 @@ __all__ = [
     "terrain_blocks",
     "terrain_fan_cloud",
     "terrain_path",
+    "tile_boxes",
+    "tiled_fans",
     "to_vtk",
 ]

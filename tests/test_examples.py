@@ -22,6 +22,7 @@ MODULES = [
     "fancloud_vtk.algorithms.refine",
     "fancloud_vtk.algorithms.vdfc",
     "fancloud_vtk.accessor",
+    "fancloud_vtk.distributed",
 ]
 
 

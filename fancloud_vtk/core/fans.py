@@ -174,7 +174,17 @@ def build_fans(
     pdata = check_point_data(point_data, n)
     _check_size(n, k)
     check_spread(pts)
+    return _fans(pts, k, max_angle, max_replacements, rule, rule_id, rotate_sharp_edges, reach,
+                 separate_sheets, given_normals, orient, pdata, workers, progress)[0]
 
+
+def _fans(pts, k, max_angle, max_replacements, rule, rule_id, rotate_sharp_edges, reach,
+          separate_sheets, given_normals, orient, pdata, workers, progress):
+    """:func:`build_fans` on checked arguments: (fan cloud, no_plane), ``no_plane`` (n,) in
+    the input order (True where the fan's plane stands in for a normal the nearest points
+    do not give: what the orientation needs besides the fans), or None when duplicate
+    points were merged."""
+    n = len(pts)
     timings = {}
     t0 = time.perf_counter()
     _report(progress, 0.0, "neighbour search")
@@ -186,7 +196,7 @@ def build_fans(
                  rotate_sharp_edges=rotate_sharp_edges, reach=reach,
                  separate_sheets=separate_sheets, orient=orient, workers=workers,
                  progress=progress),
-        )
+        ), None
     # Work in the grid's cell order: spatially coherent, so the candidate
     # pools of consecutive points are close in memory (several times faster).
     order, pos, sp = grid.order, grid.pos, grid.sorted_points
@@ -265,7 +275,7 @@ def build_fans(
         "duplicates_merged": 0,
         "timings": timings,
     }
-    return FanCloud(pts, offsets, ring, fan_normals, open_, rotated, pdata, info)
+    return FanCloud(pts, offsets, ring, fan_normals, open_, rotated, pdata, info), no_plane[pos]
 
 
 def _gap_directed_retry(sp, tree, k, width, max_gap, rotate, n_normal, reach, sheets, spacing,
@@ -476,3 +486,30 @@ def _orientation(points, normals, ring_tab, counts, no_plane):
     n_comp = int(comp.max()) + 1
     score = outward_scores(points, normals, flip, ring_tab, counts, comp, n_comp)
     return flip ^ (score < 0)[comp]
+
+
+def _orient_fans(fc: FanCloud, no_plane) -> FanCloud:
+    """The unoriented fan cloud ``fc`` (``build_fans(..., orient=False)``, or fans stitched
+    from tiles) oriented as :func:`build_fans` orients: the same propagation on the same
+    spatial order of the points, so the result is the one ``build_fans(fc.points)`` gives.
+    ``no_plane`` (n,): see :func:`_fans`."""
+    n = fc.n_points
+    grid = Grid(fc.points)
+    order, pos, sp = grid.order, grid.pos, grid.sorted_points
+    sizes = np.diff(fc.offsets)
+    width = max(int(sizes.max(initial=0)), 1)
+    ring_tab = np.full((n, width), -1, np.int64)
+    counts = np.zeros(n, np.int64)
+    counts[pos] = sizes
+    rows = np.repeat(pos, sizes)
+    cols = np.arange(len(fc.ring)) - np.repeat(fc.offsets[:-1], sizes)
+    ring_tab[rows, cols] = pos[fc.ring]
+    normals_s = np.empty((n, 3), np.float64)
+    normals_s[pos] = fc.normals
+    plane_s = np.zeros(n, bool)
+    plane_s[pos] = no_plane
+    flip = _orientation(sp, normals_s, ring_tab, counts, plane_s)
+    flip_fans(normals_s, ring_tab, counts, flip)
+    offsets, ring, normals = K.to_input_order(order, pos, ring_tab, counts, normals_s)
+    return FanCloud(fc.points, offsets, ring, normals, fc.open, fc.rotated, fc.point_data,
+                    dict(fc.info))
