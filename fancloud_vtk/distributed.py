@@ -124,7 +124,7 @@ def tiled_fans(
     tiles : tuple of 3 int, default: (2, 2, 2)
         Tiles along x, y and z.
     halo : float, optional
-        The starting halo width, in the points' units (default: ``4 * MARGIN`` times the
+        The starting halo width, in the points' units (default: ``3 * MARGIN`` times the
         median distance of a point's ``2k``-th nearest neighbour, from a sample). A tile
         whose points need more grows it (the widths used are in ``info['halos']``).
     scheduler : str or dask.distributed.Client, default: "threads"
@@ -282,7 +282,7 @@ def _tile(sub, ids, own, lo, hi, width, blo, bhi, options):
     np.maximum.at(far, np.repeat(np.arange(len(loc)), sizes),
                   np.linalg.norm(sub[fc.ring[take]] - np.repeat(p, sizes, axis=0), axis=1))
     kq = min(2 * k + 1, len(sub))
-    near = cKDTree(sub).query(p, k=kq)[0]
+    near = cKDTree(sub).query(p, k=kq, workers=-1)[0]
     radius = np.maximum(far, near[:, -1] if near.ndim == 2 else near)
     factor = np.where(fc.open[loc], OPEN_MARGIN, MARGIN)
     need = factor * radius
@@ -324,14 +324,14 @@ def _grown(pts, lo, hi, width):
 
 
 def _auto_halo(pts, k) -> float:
-    """``4 * MARGIN`` times the median distance of the ``2k``-th nearest neighbour, from
+    """``3 * MARGIN`` times the median distance of the ``2k``-th nearest neighbour, from
     a sample (a random subset's distances scaled to the whole cloud's density on a
     surface)."""
     n = len(pts)
     m = min(n, _HALO_SAMPLE)
     sub = pts if m == n else pts[np.random.default_rng(0).choice(n, m, replace=False)]
     d = cKDTree(sub).query(sub[: min(m, 2000)], k=min(2 * k + 1, m))[0][:, -1]
-    return float(4.0 * MARGIN * np.median(d) * np.sqrt(m / n))
+    return float(3.0 * MARGIN * np.median(d) * np.sqrt(m / n))
 
 
 def _check_tiles(tiles) -> np.ndarray:

@@ -602,3 +602,19 @@ def test_a_result_is_written_with_its_header_and_its_rows(tmp_path):
         write_outputs(str(tmp_path), "x", "text", {"rows": []})
     md, js = write_outputs(str(tmp_path), "x", "text", {**res, "rows": []})
     assert json.loads(Path(js).read_text())["rows"] == []
+
+
+def test_bench_tiles_compares_the_tiles_with_one_process(tmp_path, capsys):
+    """Small: one process and Dask's threads (the cluster mode is the same plumbing with a
+    LocalCluster, tested in test_distributed.py); the fan clouds' digests agree."""
+    out = tmp_path / "bt"
+    assert cli_main(["bench", "tiles", "--sizes", "30k", "--tiles", "2,2,1", "--modes", "one",
+                     "threads", "--out", str(out), "-q"]) == 0
+    res = json.loads((out / "tiles.json").read_text())
+    by_figure = {r["figure"]: r for r in res["rows"]}
+    same = by_figure["tiles: same fan cloud as one process, tiled_fans 2x2x1, Dask threads"]
+    assert same["measured"] == "yes" and same["verdict"] == "yes"
+    assert float(by_figure["tiles: wall time, one process, build_fans"]["measured"]) > 0
+    assert "tiles: ratio tiled_fans 2x2x1, Dask threads / one process" in by_figure
+    assert {r["mode"] for r in res["runs"]} == {"one", "threads"}
+    assert "fancloud bench tiles" in capsys.readouterr().out

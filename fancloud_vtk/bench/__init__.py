@@ -50,6 +50,13 @@
     ``vdfc_frames.csv``, ``vdfc_frames.png``, ``frames/frame_*.png`` and
     ``vdfc_peers.png``.
 
+``fancloud bench tiles [--sizes 1M,10M] [--tiles 2,2,2] [--workers 2]``
+    The fans of a large cloud in tiles on Dask (:func:`fancloud_vtk.tiled_fans`)
+    against ``build_fans`` in one process (:mod:`fancloud_vtk.bench.tiles`):
+    wall time, throughput, peak memory of the process and of each worker of
+    a LocalCluster, and whether the fan cloud is the same. Writes
+    ``tiles.md`` and ``tiles.json``.
+
 ``fancloud bench compile [--command "demo -q --out {tmp}"] [--repeat 1]``
     What a new user waits for once: the command (by default the demo) run
     twice in fresh processes with an empty numba cache of its own; the
@@ -92,7 +99,7 @@ __all__ = ["K", "WARMUP_POINTS", "main", "make_parser", "parse_size", "parse_siz
            "size_label", "surface_points"]
 
 #: The benchmarks, in the order of ``fancloud bench --help``: modules with ``add_parser(sub)``.
-BENCHMARKS = ("fans", "mesh", "reduce", "refine", "vdfc", "compile")
+BENCHMARKS = ("fans", "mesh", "reduce", "refine", "vdfc", "tiles", "compile")
 
 
 def make_parser() -> argparse.ArgumentParser:
