@@ -12,24 +12,31 @@ tile's box grown by the halo. A fan looks at its point's nearest neighbours (the
 at the ``2k`` nearest, the fan at its ring and the candidates before them) and at the
 local spacing of its candidates (their own nearest). An owned point is *certified* when
 its distance to the nearest face of the grown box (faces on the cloud's bounding box do
-not count: nothing lies beyond them) is at least :data:`MARGIN` times the larger of its
-farthest ring neighbour and its ``2k``-th nearest neighbour, :data:`OPEN_MARGIN` times
-for an open fan (its gap-directed search looks across the gap). A tile with a point that
-is not certified is built again with its halo grown to what that point needs (at least
-doubled), until every point is certified or the grown box holds the whole cloud.
+not count: nothing lies beyond them) is at least :data:`MARGIN` times its fan's radius,
+:data:`OPEN_MARGIN` times for an open fan (its gap-directed search looks across the
+gap). The radius: the larger of its farthest ring neighbour and a bound of its ``2k``-th
+nearest neighbour's distance (the ``2k``-th nearest point of its two rings; any ``2k``
+points are no nearer than the ``2k`` nearest). A tile with a point that is not certified
+is built again with its halo grown to what that point needs (at least doubled), until
+every point is certified or the grown box holds the whole cloud.
 
 Tiles run as Dask tasks (``scheduler``: a Dask scheduler name such as ``"threads"`` or
-``"sync"``, a ``dask.distributed.Client``, or a scheduler address). Dask is an optional
-dependency: ``pip install "fancloud-vtk[distributed]"``.
+``"sync"``, a ``dask.distributed.Client``, or a scheduler address). On a client each
+tile's points travel inside its task, so that the scheduler can run a tile again on
+another worker when one dies. Dask is an optional dependency:
+``pip install "fancloud-vtk[distributed]"``.
 """
 
 from __future__ import annotations
 
 import time
+import warnings
 
+import numba
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .core import _ring_kernels as RingK
 from .core import fans as _F
 from .core.model import FanCloud
 from .core.validation import FanCloudInputError, as_points, check_point_data, check_spread
@@ -37,8 +44,8 @@ from .core.validation import FanCloudInputError, as_points, check_point_data, ch
 __all__ = ["MARGIN", "OPEN_MARGIN", "tile_boxes", "tiled_fans"]
 
 #: an owned point is certified when the grown box reaches this many times its fan's
-#: radius beyond it (the radius: the farther of its farthest ring neighbour and its
-#: ``2k``-th nearest neighbour)
+#: radius beyond it (the radius: the farther of its farthest ring neighbour and a bound
+#: of its ``2k``-th nearest neighbour's distance)
 MARGIN = 3.0
 #: the same for an open fan (its gap-directed search reaches farther)
 OPEN_MARGIN = 6.0
@@ -178,13 +185,14 @@ point_data
     pdata = check_point_data(point_data, n)
     _F._check_size(n, k)
     check_spread(pts)
-    n_dup = n - len(np.unique(pts, axis=0))
+    t_all = time.perf_counter()
+    grid = _F.Grid(pts)  # the spatial order of the orientation, and the duplicates
+    n_dup = grid.n_dup
     if n_dup:
         raise FanCloudInputError(
             f"{n_dup:,} duplicate point(s): tiled_fans needs "
             "distinct points (build_fans merges them; merge them first, e.g. with "
             "numpy.unique(points, axis=0))")
-    t_all = time.perf_counter()
     lo, hi, owner = tile_boxes(pts, tiles)
     blo, bhi = pts.min(axis=0), pts.max(axis=0)
     start = _auto_halo(pts, k) if halo is None else _check_halo(halo)
@@ -198,16 +206,15 @@ point_data
     todo = [t for t in range(len(lo)) if len(owned[t])]
     t0 = time.perf_counter()
     while todo:
-        tasks = []
+        jobs = []
         for t in todo:
             ids = _grown(pts, lo[t], hi[t], widths[t])
             while len(ids) < min(n, 4 * (k + 1)):  # too few to make fans: a wider halo
                 widths[t] = max(2.0 * widths[t], 1e-9 * float(np.abs(bhi - blo).max()))
                 ids = _grown(pts, lo[t], hi[t], widths[t])
             built[t] = len(ids)
-            tasks.append(dask.delayed(_tile, pure=False)(
-                pts[ids], ids, owned[t], lo[t], hi[t], widths[t], blo, bhi, options))
-        out = _compute(dask, tasks, scheduler)
+            jobs.append((pts[ids], ids, owned[t], lo[t], hi[t], widths[t], blo, bhi, options))
+        out = _run_tiles(dask, jobs, scheduler)
         again = []
         for t, res in zip(todo, out, strict=True):
             need = res[-1]
@@ -257,7 +264,7 @@ point_data
     timings["stitch"] = time.perf_counter() - t0
     if orient:
         t0 = time.perf_counter()
-        fc = _F._orient_fans(fc, no_plane)
+        fc = _F._orient_fans(fc, no_plane, grid)
         timings["orientation"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
     fc.info["timings"] = timings
@@ -276,14 +283,18 @@ def _tile(sub, ids, own, lo, hi, width, blo, bhi, options):
     take = np.repeat(fc.offsets[loc], sizes) + (
         np.arange(sizes.sum()) - np.repeat(np.cumsum(sizes) - sizes, sizes))
     ring = ids[fc.ring[take]]
-    # the radius each owned fan looked at, and the halo that radius needs
+    # the radius each owned fan looked at, and the halo that radius needs: its farthest
+    # fan neighbour and (a bound of) its 2k-th nearest point, from its two rings; where
+    # the two rings are too few, the exact 2k-th nearest
     p = sub[loc]
-    far = np.zeros(len(loc))
-    np.maximum.at(far, np.repeat(np.arange(len(loc)), sizes),
-                  np.linalg.norm(sub[fc.ring[take]] - np.repeat(p, sizes, axis=0), axis=1))
-    kq = min(2 * k + 1, len(sub))
-    near = cKDTree(sub).query(p, k=kq, workers=-1)[0]
-    radius = np.maximum(far, near[:, -1] if near.ndim == 2 else near)
+    far, near = RingK.fan_radii(sub, fc.offsets, fc.ring, loc, min(2 * k, len(sub) - 1),
+                                2 * numba.get_num_threads())
+    few = near < 0
+    if few.any():
+        kq = min(2 * k + 1, len(sub))
+        d = cKDTree(sub).query(p[few], k=kq)[0]
+        near[few] = d[:, -1] if d.ndim == 2 else d
+    radius = np.maximum(far, near)
     factor = np.where(fc.open[loc], OPEN_MARGIN, MARGIN)
     need = factor * radius
     # room: to the grown box's faces that are not the cloud's bounding box's
@@ -303,18 +314,34 @@ def _tile(sub, ids, own, lo, hi, width, blo, bhi, options):
             needed)
 
 
-def _compute(dask, tasks, scheduler):
+def _run_tiles(dask, jobs, scheduler) -> list:
+    """``_tile(*job)`` for every job, on the scheduler; the results in order."""
     if isinstance(scheduler, str) and "://" in scheduler:
         from dask.distributed import Client
 
         with Client(scheduler) as client:
-            return client.gather(client.compute(tasks))
+            return _on_client(client, jobs)
     if isinstance(scheduler, str):
-        return dask.compute(*tasks, scheduler=scheduler)
-    if hasattr(scheduler, "compute") and hasattr(scheduler, "gather"):
-        return scheduler.gather(scheduler.compute(tasks))
+        return list(dask.compute(*[dask.delayed(_tile, pure=False)(*job) for job in jobs],
+                                 scheduler=scheduler))
+    if all(hasattr(scheduler, name) for name in ("compute", "gather")):
+        return _on_client(scheduler, jobs)
     raise TypeError("scheduler must be a Dask scheduler name, a scheduler address or a "
                     f"dask.distributed.Client, got {scheduler!r}")
+
+
+def _on_client(client, jobs) -> list:
+    """The tiles on a ``dask.distributed`` client, each tile's points inside its task: the
+    scheduler keeps them, so a task whose worker dies runs again on another (points
+    scattered to a worker would die with it). Dask's advice against large graphs is
+    silenced here for that reason."""
+    import dask
+
+    tasks = [dask.delayed(_tile, pure=False)(*job) for job in jobs]
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
+        futures = client.compute(tasks)
+    return client.gather(futures)
 
 
 def _grown(pts, lo, hi, width):

@@ -174,3 +174,39 @@ def test_duplicates_nan_and_bad_scheduler_are_refused():
         tiled_fans(points, scheduler=42)
     with pytest.raises(FanCloudInputError):
         tiled_fans(points[:5])
+
+
+def test_a_worker_killed_mid_run_leaves_the_same_fans():
+    """A LocalCluster worker process killed while tiles are running: Dask runs its tiles
+    again elsewhere, and the fan cloud is still build_fans'."""
+    import os
+    import signal
+    import threading
+    import time
+
+    distributed = pytest.importorskip("dask.distributed")
+    points = sphere(400_000, seed=7)
+    one = build_fans(points)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        tiled_fans(points[:20_000], tiles=(2, 1, 1), scheduler=client)  # kernels loaded
+        pids = client.run(os.getpid)
+        out = {}
+        run = threading.Thread(target=lambda: out.setdefault(
+            "fc", tiled_fans(points, tiles=(4, 2, 1), scheduler=client)))
+        run.start()
+        killed = None
+        deadline = time.monotonic() + 60
+        while killed is None and time.monotonic() < deadline and run.is_alive():
+            busy = [w for w, tasks in client.processing().items() if tasks]
+            if busy:
+                killed = pids[busy[0]]
+                os.kill(killed, signal.SIGKILL)
+            else:
+                time.sleep(0.01)
+        assert killed is not None, "no tile was running on a worker"
+        assert run.is_alive(), "the run had finished before the kill"
+        run.join(timeout=300)
+        assert not run.is_alive()
+    assert same(out["fc"], one)

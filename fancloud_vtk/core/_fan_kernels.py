@@ -905,3 +905,27 @@ def to_input_order(order, pos, ring_tab, counts, normals):
         out_normals[i, 1] = normals[s, 1]
         out_normals[i, 2] = normals[s, 2]
     return offsets, ring, out_normals
+
+
+@njit(cache=True, parallel=True)
+def to_cell_order(pos, offsets, ring, normals, flags, width):
+    """The inverse of :func:`to_input_order`: the rings (CSR, input indices) as the
+    cell-ordered table ``ring_tab`` (n, width) with ``counts``, the normals and a per-point
+    flag array in the cell order (``pos[i]``: the place of input point i)."""
+    n = pos.shape[0]
+    ring_tab = np.full((n, width), -1, np.int64)
+    counts = np.zeros(n, np.int64)
+    out_normals = np.empty((n, 3), np.float64)
+    out_flags = np.zeros(n, np.bool_)
+    for i in prange(n):
+        s = pos[i]
+        o = offsets[i]
+        counts[s] = offsets[i + 1] - o
+        for j in range(offsets[i + 1] - o):
+            ring_tab[s, j] = pos[ring[o + j]]
+        out_normals[s, 0] = normals[i, 0]
+        out_normals[s, 1] = normals[i, 1]
+        out_normals[s, 2] = normals[i, 2]
+        out_flags[s] = flags[i]
+    return ring_tab, counts, out_normals, out_flags
+

@@ -461,3 +461,43 @@ def relabel_rings(offsets, ring, order, rank):
         for j in range(offsets[p], offsets[p + 1]):
             out[o + j - offsets[p]] = rank[ring[j]]
     return out_off, out
+
+
+@njit(cache=True, parallel=True)
+def fan_radii(points, offsets, ring, which, m, n_chunks):
+    """Per point ``which[i]``: (its farthest fan neighbour's distance, an upper bound of
+    the distance of its ``m``-th nearest point, or -1 when its two rings hold fewer than
+    ``m`` other points). The bound is the ``m``-th smallest distance to the points of its
+    two rings (:func:`two_rings`): any ``m`` points are no nearer than the ``m`` nearest.
+    The work is split in ``n_chunks`` parts, each with an (n,) stamp array."""
+    n = points.shape[0]
+    n_w = which.shape[0]
+    far = np.zeros(n_w)
+    bound = np.full(n_w, -1.0)
+    cap = two_rings_cap(offsets, ring, which, m + 1)
+    n_chunks = max(1, min(n_w, n_chunks))
+    for ch in prange(n_chunks):
+        stamp = np.full(n, -1, np.int64)
+        cand = np.empty(cap, np.int64)
+        best = np.empty(m)
+        for i in range((n_w * ch) // n_chunks, (n_w * (ch + 1)) // n_chunks):
+            p = which[i]
+            f = 0.0
+            for a in range(offsets[p], offsets[p + 1]):
+                f = max(f, dist2(points, p, ring[a]))
+            far[i] = np.sqrt(f)
+            c = two_rings(offsets, ring, p, stamp, cand)
+            if c < m:
+                continue
+            for j in range(m):
+                best[j] = np.inf
+            for t in range(c):
+                d = dist2(points, p, cand[t])
+                if d < best[m - 1]:
+                    j = m - 1
+                    while j > 0 and best[j - 1] > d:
+                        best[j] = best[j - 1]
+                        j -= 1
+                    best[j] = d
+            bound[i] = np.sqrt(best[m - 1])
+    return far, bound

@@ -488,28 +488,17 @@ def _orientation(points, normals, ring_tab, counts, no_plane):
     return flip ^ (score < 0)[comp]
 
 
-def _orient_fans(fc: FanCloud, no_plane) -> FanCloud:
+def _orient_fans(fc: FanCloud, no_plane, grid: Grid | None = None) -> FanCloud:
     """The unoriented fan cloud ``fc`` (``build_fans(..., orient=False)``, or fans stitched
     from tiles) oriented as :func:`build_fans` orients: the same propagation on the same
     spatial order of the points, so the result is the one ``build_fans(fc.points)`` gives.
-    ``no_plane`` (n,): see :func:`_fans`."""
-    n = fc.n_points
-    grid = Grid(fc.points)
-    order, pos, sp = grid.order, grid.pos, grid.sorted_points
-    sizes = np.diff(fc.offsets)
-    width = max(int(sizes.max(initial=0)), 1)
-    ring_tab = np.full((n, width), -1, np.int64)
-    counts = np.zeros(n, np.int64)
-    counts[pos] = sizes
-    rows = np.repeat(pos, sizes)
-    cols = np.arange(len(fc.ring)) - np.repeat(fc.offsets[:-1], sizes)
-    ring_tab[rows, cols] = pos[fc.ring]
-    normals_s = np.empty((n, 3), np.float64)
-    normals_s[pos] = fc.normals
-    plane_s = np.zeros(n, bool)
-    plane_s[pos] = no_plane
-    flip = _orientation(sp, normals_s, ring_tab, counts, plane_s)
+    ``no_plane`` (n,): see :func:`_fans`; ``grid``: ``Grid(fc.points)`` if made already."""
+    grid = Grid(fc.points) if grid is None else grid
+    width = max(int(np.diff(fc.offsets).max(initial=0)), 1)
+    ring_tab, counts, normals_s, plane_s = K.to_cell_order(
+        grid.pos, fc.offsets, fc.ring, fc.normals, np.asarray(no_plane, bool), width)
+    flip = _orientation(grid.sorted_points, normals_s, ring_tab, counts, plane_s)
     flip_fans(normals_s, ring_tab, counts, flip)
-    offsets, ring, normals = K.to_input_order(order, pos, ring_tab, counts, normals_s)
+    offsets, ring, normals = K.to_input_order(grid.order, grid.pos, ring_tab, counts, normals_s)
     return FanCloud(fc.points, offsets, ring, normals, fc.open, fc.rotated, fc.point_data,
                     dict(fc.info))
