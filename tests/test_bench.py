@@ -220,7 +220,7 @@ def test_bench_mesh_smoke(tmp_path, capsys, fake_peers):
 
     out = tmp_path / "bench"
     argv = ["bench", "mesh", "--data", "3000", "--methods", "ours", "meshlib", "ball-pivoting",
-            f"{fake_peers}:load_missing", "--timeout", "120", "--samples", "2",
+            f"{fake_peers}:load_missing", "--timeout", "900", "--samples", "2",
             "--out", str(out), "-q"]
     assert cli_main(argv) == 0
 
@@ -344,7 +344,7 @@ def test_bench_reduce_smoke(tmp_path, capsys, fake_peers):
     out = tmp_path / "bench"
     argv = ["bench", "reduce", "--data", "3000", "--keep", "0.3", "--curve", "--methods",
             "ours-shape", "fast-simplification", "ours-colour", f"{fake_peers}:load_missing",
-            "--timeout", "120", "--samples", "1", "--out", str(out), "-q"]
+            "--timeout", "900", "--samples", "1", "--out", str(out), "-q"]
     assert cli_main(argv) == 0
 
     text = (out / "reduce.md").read_text()
