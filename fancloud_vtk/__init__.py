@@ -25,7 +25,7 @@ from .core.vdfc import (
     terrain_fan_cloud,
     terrain_path,
 )
-from .distributed import tile_boxes, tiled_fans
+from .distributed import read_tiles, tile_boxes, tiled_fans, write_tiled_fans
 from .io import DroppedArrayWarning
 
 __version__ = "0.1.0"
@@ -96,7 +96,9 @@ __all__ = [
     "terrain_blocks",
     "terrain_fan_cloud",
     "terrain_path",
+    "read_tiles",
     "tile_boxes",
     "tiled_fans",
     "to_vtk",
+    "write_tiled_fans",
 ]

@@ -186,9 +186,71 @@ def _check_output(path: str, ext: str | tuple[str, ...]) -> None:
         raise FileNotFoundError(f"cannot write {path!r}: no such directory {folder!r}")
 
 
+def _parse_tiles(text: str):
+    """``--tiles``: "auto" or "X,Y,Z" (tiles along each axis)."""
+    if text == "auto":
+        return "auto"
+    try:
+        t = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        t = ()
+    if len(t) != 3 or min(t) < 1:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or three positive integers X,Y,Z, "
+                                         f"got {text!r}")
+    return t
+
+
+def cmd_fans_tiled(args) -> int:
+    """``fancloud fans BIG -o OUTDIR --tiles ...``: the fan cloud in tiles on Dask, the input
+    read in chunks, one ``.vtp`` per tile plus ``index.json`` and ``fans.vtpd``."""
+    from fancloud_vtk.distributed import write_tiled_fans
+
+    values = _params(args, VERB_PARAMS["fans"])
+    if os.path.exists(args.output) and not os.path.isdir(args.output):
+        raise ValueError(f"with --tiles the output is a folder, and {args.output!r} is a file")
+    if args.input.lower().endswith((".obj", ".ply", ".vtp", ".vtk", ".vtu", ".stl")):
+        warnings.warn(f"{os.path.basename(args.input)}: with --tiles only the points' "
+                      "coordinates are read (no faces, normals or point arrays): vertices "
+                      "that no face uses are kept", UserWarning, stacklevel=2)
+    fan_options = {key: values[key] for key in ("k", "max_angle", "max_replacements", "rule",
+                                                "rotate_sharp_edges", "reach",
+                                                "separate_sheets")}
+    progress = _Progress("fans in tiles", args.quiet)
+    t0 = time.perf_counter()
+    try:
+        index = write_tiled_fans(args.input, args.output, tiles=args.tiles,
+                                 tile_points=args.tile_points, scheduler=args.scheduler,
+                                 workers=args.workers, chunk=args.chunk, progress=progress,
+                                 **fan_options)
+    finally:
+        progress.close()
+    elapsed = time.perf_counter() - t0
+    if not args.quiet:
+        tiles = index["tile_list"]
+        n = index["n_points"]
+        n_open = sum(t["open"] for t in tiles)
+        _print_rows([
+            ("points", f"{n:,}"),
+            ("tiles", "x".join(str(v) for v in index["tiles"])
+             + f" ({sum(1 for t in tiles if t['file'])} written)"),
+            ("points per tile", f"{max(t['owned'] for t in tiles):,} at most"),
+            ("halo", f"{min(t['halo'] for t in tiles):.4g} to {max(t['halo'] for t in tiles):.4g}"),
+            ("fans open", f"{n_open:,} ({100 * n_open / max(n, 1):.2f}%)"),
+            ("tiles flipped", f"{sum(t['flipped'] for t in tiles):,}"),
+            ("time", f"{elapsed:.2f} s"),
+            ("written", os.path.join(args.output, "index.json") + " (+ fans.vtpd, tile_*.vtp)"),
+        ])
+    return 0
+
+
 def cmd_fans(args) -> int:
     from fancloud_vtk.algorithms.convert import fancloud_to_vtk, write_vtp
 
+    if args.tiles is not None:
+        return cmd_fans_tiled(args)
+    for option in ("scheduler", "workers"):
+        if getattr(args, option) is not None:
+            raise ValueError(f"--{option} goes with --tiles")
     _check_output(args.output, ".vtp")
     result, _, elapsed = _run_verb(
         "fans", args, _params(args, VERB_PARAMS["fans"]),
@@ -487,9 +549,24 @@ def make_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
 
     p = sub.add_parser("fans", help="build the fan cloud of a point cloud or mesh file")
-    p.add_argument("input", help="input file: .ply .obj .stl .vtp .vtk .vtu .xyz .pts .txt .npy")
-    p.add_argument("-o", "--output", required=True, help="output fan cloud (.vtp)")
+    p.add_argument("input", help="input file: .ply .obj .stl .vtp .vtk .vtu .xyz .pts .txt .npy "
+                                 ".las .laz")
+    p.add_argument("-o", "--output", required=True,
+                   help="output fan cloud (.vtp); with --tiles an output folder")
     _add_params(p, VERB_PARAMS["fans"])
+    tiled = p.add_argument_group(
+        "tiles (a cloud larger than memory: read in chunks, built in tiles on Dask, written "
+        "per tile)")
+    tiled.add_argument("--tiles", type=_parse_tiles, default=None, metavar="auto|X,Y,Z",
+                       help="build in tiles: 'auto' (about N / --tile-points tiles) or X,Y,Z")
+    tiled.add_argument("--tile-points", type=int, default=2_000_000,
+                       help="with --tiles auto: points per tile (default: %(default)s)")
+    tiled.add_argument("--scheduler", default=None, metavar="ADDR",
+                       help="a Dask scheduler address (default: a LocalCluster on this machine)")
+    tiled.add_argument("--workers", type=int, default=None,
+                       help="the LocalCluster's worker processes (default: the CPU count)")
+    tiled.add_argument("--chunk", type=int, default=1_000_000,
+                       help="points read at a time (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_fans)
 

@@ -41,7 +41,7 @@ from .core import fans as _F
 from .core.model import FanCloud
 from .core.validation import FanCloudInputError, as_points, check_point_data, check_spread
 
-__all__ = ["MARGIN", "OPEN_MARGIN", "tile_boxes", "tiled_fans"]
+__all__ = ["MARGIN", "OPEN_MARGIN", "read_tiles", "tile_boxes", "tiled_fans", "write_tiled_fans"]
 
 #: an owned point is certified when the grown box reaches this many times its fan's
 #: radius beyond it (the radius: the farther of its farthest ring neighbour and a bound
@@ -384,3 +384,698 @@ def _morton(ijk) -> np.ndarray:
         for axis in range(3):
             code |= ((ijk[:, axis] >> bit) & 1) << (3 * bit + axis)
     return code
+
+
+# ----------------------------------------------------------------------------- out of core
+
+#: the name of a tiled fan cloud's index (a JSON file) in its folder
+INDEX_NAME = "index.json"
+#: the partitioned dataset (VTK's ``.vtpd``) listing the tiles' files, for ParaView
+VTPD_NAME = "fans.vtpd"
+#: points of a tile's halo (and of its owned points) whose normals are compared across
+#: tiles: those whose global id hashes to 0 modulo this
+_SAMPLE_MODULUS = 64
+_WORK = ".work"
+#: a tile file's point array: 1 where the fan's normal and ring were turned from the way
+#: the fan was built (by the tile's orientation and the agreement between tiles);
+#: :func:`read_tiles` turns them back before orienting the whole cloud as build_fans does
+FAN_FLIPPED = "fan_flipped"
+
+
+def write_tiled_fans(
+    source,
+    outdir,
+    k: int = 6,
+    *,
+    tiles="auto",
+    tile_points: int = 2_000_000,
+    halo: float | None = None,
+    scheduler=None,
+    workers: int | None = None,
+    chunk: int = 1_000_000,
+    max_angle: float = 90.0,
+    max_replacements: int = 42,
+    rule: str = "cover",
+    rotate_sharp_edges: bool = True,
+    reach: float = 5.0,
+    separate_sheets: bool = False,
+    progress=None,
+) -> dict:
+    """The fan cloud of a cloud larger than memory, built in tiles and written per tile.
+
+    The input streams through twice in chunks (:func:`fancloud_vtk.io.read_point_chunks`):
+    once for its size, bounding box and a sample (the halo width), once to sort its points
+    into the tiles' boxes grown by the halo, on disk (``OUTDIR/.work``). Each tile then runs
+    as a task that reads only its own points, builds their fans (the halo rule of
+    :func:`tiled_fans`; a tile whose points need a wider halo is sorted again with it),
+    orients them over its box and writes ``OUTDIR/tile_NNNN.vtp``. The tiles' normals are
+    made to agree (a tile whose normals point against its neighbours' on the points they
+    share is flipped, from the tile with the most points), then ``index.json`` and
+    ``fans.vtpd`` are written: no tile file or index is half-written at any time (each is
+    written under a temporary name and renamed), and a folder without ``index.json`` is an
+    unfinished run. :func:`read_tiles` puts the tiles together: the fan cloud
+    ``build_fans`` gives on the same points, ring for ring and normal for normal.
+
+    Each tile file is a fan cloud ``.vtp`` (``fancloud mesh tile_0000.vtp`` reads it) of the
+    tile's own points followed by the points of other tiles that their fans use, with the
+    point arrays ``GlobalPointIds`` (the point's row in the input) and ``vtkGhostType`` (1:
+    another tile's point; its fan is empty here). ParaView opens ``fans.vtpd`` as one
+    partitioned dataset.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or array_like
+        A point file (``.npy``, ``.ply``, ``.las``, ``.laz`` are read in chunks; other
+        formats whole) or an ``(n, 3)`` array. Only the coordinates are used.
+    outdir : str or os.PathLike
+        The output folder; made if missing, and must not hold a tiled fan cloud already
+        (no ``index.json``) unless empty of one.
+    k : int, default: 6
+        Neighbours per fan.
+    tiles : "auto" or tuple of 3 int, default: "auto"
+        Tiles along x, y and z; ``"auto"``: about ``n / tile_points`` tiles, cut along
+        the longest sides of the bounding box.
+    tile_points : int, default: 2_000_000
+        With ``tiles="auto"``: the points a tile should own at most, on average.
+    halo : float, optional
+        The starting halo width (as in :func:`tiled_fans`).
+    scheduler : str or dask.distributed.Client, optional
+        None (default): a ``LocalCluster`` of ``workers`` single-threaded processes, closed
+        at the end. Otherwise as in :func:`tiled_fans` (a scheduler address for a real
+        cluster: its workers must see ``outdir``).
+    workers : int, optional
+        The ``LocalCluster``'s worker processes (default: the CPU count).
+    chunk : int, default: 1_000_000
+        Points read at a time.
+    max_angle, max_replacements, rule, rotate_sharp_edges, reach, separate_sheets
+        As in ``build_fans``.
+    progress : callable, optional
+        ``progress(fraction, message)``, called as tiles finish.
+
+    Returns
+    -------
+    dict
+        The index (what ``index.json`` holds): ``n_points``, ``bounds``, ``tiles``,
+        ``parameters``, and per tile its ``file``, ``box``, ``halo``, ``owned``, ``built``,
+        ``ghosts``, ``flipped``; ``no_plane`` (global ids of the points whose fan plane
+        stands in for a normal, which the orientation of :func:`read_tiles` needs);
+        ``timings``.
+
+    Raises
+    ------
+    FanCloudInputError
+        Non-finite coordinates (naming the row), duplicate points, too few points, bad
+        ``tiles`` / ``halo`` / ``tile_points``, or an ``outdir`` that already holds one.
+    FileReadError
+        An unreadable input file.
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile
+    >>> from fancloud_vtk import build_fans
+    >>> from fancloud_vtk.distributed import read_tiles, write_tiled_fans
+    >>> p = np.random.default_rng(0).normal(size=(20000, 3))
+    >>> p /= np.linalg.norm(p, axis=1)[:, None]
+    >>> out = tempfile.mkdtemp()
+    >>> index = write_tiled_fans(p, out, tiles=(2, 2, 1), scheduler="sync")
+    >>> len(index["tile_list"])
+    4
+    >>> fc, one = read_tiles(out), build_fans(p)
+    >>> bool(np.array_equal(fc.ring, one.ring) and np.array_equal(fc.normals, one.normals))
+    True
+    """
+    import json
+    import os
+    import shutil
+
+    try:
+        import dask
+    except ImportError as exc:  # pragma: no cover - the test extra installs it
+        raise ImportError('write_tiled_fans needs Dask: pip install '
+                          '"fancloud-vtk[distributed]"') from exc
+    k, max_angle, max_replacements, rule_id = _F._check_parameters(
+        k, max_angle, max_replacements, rule)
+    reach = _F._check_reach(reach)
+    for name, flag in (("separate_sheets", separate_sheets),
+                       ("rotate_sharp_edges", rotate_sharp_edges)):
+        if not isinstance(flag, bool | np.bool_):
+            raise TypeError(f"{name} must be True or False, got {flag!r}")
+    if isinstance(tile_points, bool) or not isinstance(tile_points, int | np.integer) \
+            or tile_points < 1000:
+        raise FanCloudInputError(f"tile_points must be an integer of at least 1000, got "
+                                 f"{tile_points!r}")
+    if not (isinstance(tiles, str) and tiles == "auto"):
+        _check_tiles(tiles)
+    start_halo = None if halo is None else _check_halo(halo)
+    outdir = os.fspath(outdir)
+    if os.path.exists(os.path.join(outdir, INDEX_NAME)):
+        raise FanCloudInputError(f"{outdir} already holds a tiled fan cloud ({INDEX_NAME}): "
+                                 "choose another folder or remove it")
+    if os.path.exists(outdir) and not os.path.isdir(outdir):
+        raise FanCloudInputError(f"{outdir} exists and is not a folder")
+    chunks = _chunk_source(source, chunk)
+    report = progress if progress is not None else (lambda f, m: None)
+    t_all = time.perf_counter()
+    timings = {}
+
+    # pass 1: size, bounds, a sample
+    t0 = time.perf_counter()
+    report(0.0, "scan the input")
+    n, blo, bhi, sample = _scan(chunks())
+    _F._check_size(n, k)
+    check_spread(sample)  # all points on a line (or one point) have no fans
+    t = _auto_tiles(n, blo, bhi, tile_points) if isinstance(tiles, str) else \
+        _check_tiles(tiles)
+    lo, hi, number = _box_grid(blo, bhi, t)
+    width0 = start_halo if start_halo is not None else _auto_halo_sample(sample, n, k)
+    timings["scan"] = time.perf_counter() - t0
+
+    os.makedirs(outdir, exist_ok=True)
+    work = os.path.join(outdir, _WORK)
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    for name in os.listdir(outdir):  # an interrupted run's files
+        if name.startswith("tile_") or name.endswith(".tmp"):
+            os.remove(os.path.join(outdir, name))
+    options = (k, max_angle, max_replacements, rule, rule_id, bool(rotate_sharp_edges), reach,
+               bool(separate_sheets))
+    m = len(lo)
+    widths = np.full(m, width0)
+    summaries: list = [None] * m
+    todo = list(range(m))
+    client, close = _client_for(scheduler, workers)
+    try:
+        t_tiles = 0.0
+        t_sort = 0.0
+        while todo:
+            t0 = time.perf_counter()
+            report(0.02, f"sort the points into {len(todo)} tile(s)")
+            counts = _bucket(chunks(), work, todo, lo, hi, widths, blo, bhi, t, number)
+            t_sort += time.perf_counter() - t0
+            t0 = time.perf_counter()
+            jobs = []
+            for i in todo:
+                if counts[i][0] == 0:  # a tile that owns no point: nothing to write
+                    summaries[i] = _empty_summary(i, lo[i], hi[i], widths[i])
+                    continue
+                jobs.append((work, i, lo[i], hi[i], widths[i], blo, bhi, t, number, options,
+                             outdir, n))
+            done_before = sum(s is not None for s in summaries)
+            again = []
+            for res in _map_tasks(dask, client, scheduler, _file_tile, jobs,
+                                  lambda j, d=done_before: report(
+                                      0.05 + 0.85 * (d + j) / m, f"tiles done: {d + j}/{m}")):
+                i = res["tile"]
+                if res["needed"] > widths[i] and res["built"] < n:
+                    widths[i] = max(2.0 * widths[i], res["needed"])
+                    again.append(i)
+                else:
+                    summaries[i] = res
+            t_tiles += time.perf_counter() - t0
+            todo = sorted(again)
+        timings["sort"] = t_sort
+        timings["tiles"] = t_tiles
+
+        # the tiles' normals agree: flip a tile whose shared points point the other way
+        t0 = time.perf_counter()
+        report(0.92, "make the tiles' normals agree")
+        flips = _tile_flips(summaries)
+        flip_jobs = [(os.path.join(outdir, summaries[i]["file"]),) for i in np.flatnonzero(flips)]
+        for _ in _map_tasks(dask, client, scheduler, _flip_tile_file, flip_jobs, None):
+            pass
+        timings["agree"] = time.perf_counter() - t0
+    finally:
+        if close is not None:
+            close()
+        shutil.rmtree(work, ignore_errors=True)
+        for name in os.listdir(outdir) if os.path.isdir(outdir) else ():
+            if name.endswith(".tmp"):
+                os.remove(os.path.join(outdir, name))
+
+    timings["total"] = time.perf_counter() - t_all
+    no_plane = np.concatenate([s["no_plane"] for s in summaries]).astype(np.int64)
+    index = {
+        "format": "fancloud-vtk tiled fan cloud 1",
+        "n_points": int(n),
+        "bounds": [blo.tolist(), bhi.tolist()],
+        "tiles": [int(x) for x in t],
+        "parameters": {"k": k, "max_angle": max_angle, "max_replacements": max_replacements,
+                       "rule": rule, "rotate_sharp_edges": bool(rotate_sharp_edges),
+                       "reach": reach, "separate_sheets": bool(separate_sheets)},
+        "tile_list": [
+            {"tile": i, "file": s["file"], "box": [lo[i].tolist(), hi[i].tolist()],
+             "halo": float(widths[i]), "owned": s["owned"], "built": s["built"],
+             "ghosts": s["ghosts"], "open": s["open"], "flipped": bool(flips[i])}
+            for i, s in enumerate(summaries)],
+        "no_plane": np.sort(no_plane).tolist(),
+        "timings": timings,
+    }
+    files = [s["file"] for s in summaries if s["file"]]
+    _write_atomic(os.path.join(outdir, VTPD_NAME), _vtpd(files))
+    _write_atomic(os.path.join(outdir, INDEX_NAME), json.dumps(index, indent=1))
+    report(1.0, "done")
+    return index
+
+
+def read_tiles(outdir, *, orient: bool = True) -> FanCloud:
+    """The fan cloud of a folder written by :func:`write_tiled_fans`, in one piece.
+
+    Each point's fan comes from the tile that owns it; with ``orient`` (default) the
+    normals are then oriented over the whole cloud as ``build_fans`` orients them, so the
+    result is the fan cloud ``build_fans`` gives on the same points (the input's row order);
+    without, each tile's normals are kept as written (agreeing across tiles).
+
+    Raises
+    ------
+    FileReadError
+        No ``index.json`` (an unfinished run), or a missing or damaged tile file.
+    """
+    import json
+    import os
+
+    from .algorithms.convert import fancloud_from_vtk, read_vtp
+    from .core.validation import FileReadError
+
+    outdir = os.fspath(outdir)
+    path = os.path.join(outdir, INDEX_NAME)
+    if not os.path.isfile(path):
+        raise FileReadError(path, "no index: not a tiled fan cloud, or its run did not finish")
+    try:
+        with open(path) as fh:
+            index = json.load(fh)
+        n = int(index["n_points"])
+        tiles = index["tile_list"]
+    except (ValueError, KeyError, TypeError) as exc:
+        raise FileReadError(path, f"not a tiled fan cloud index ({exc})") from exc
+    points = np.empty((n, 3))
+    normals = np.empty((n, 3))
+    sizes = np.zeros(n, np.int64)
+    is_open = np.zeros(n, bool)
+    rotated = np.zeros(n, bool)
+    turned = np.zeros(n, bool)
+    seen = np.zeros(n, bool)
+    parts = []
+    for tile in tiles:
+        if not tile["file"]:
+            continue
+        fpath = os.path.join(outdir, tile["file"])
+        try:
+            fc = fancloud_from_vtk(read_vtp(fpath))
+            gid = np.asarray(fc.point_data["GlobalPointIds"], np.int64)
+            flag = np.asarray(fc.point_data[FAN_FLIPPED]) != 0
+        except (OSError, ValueError, KeyError) as exc:
+            raise FileReadError(fpath, f"not a tile of this fan cloud ({exc})") from exc
+        own = int(tile["owned"])
+        ids = gid[:own]
+        if len(gid) != len(fc.points) or ids.size and (ids.min() < 0 or ids.max() >= n) \
+                or seen[ids].any():
+            raise FileReadError(fpath, "its GlobalPointIds do not fit the index")
+        seen[ids] = True
+        points[ids] = fc.points[:own]
+        normals[ids] = fc.normals[:own]
+        is_open[ids] = fc.open[:own]
+        rotated[ids] = fc.rotated[:own]
+        turned[ids] = flag[:own]
+        s = np.diff(fc.offsets)[:own]
+        sizes[ids] = s
+        parts.append((ids, s, gid[fc.ring[: fc.offsets[own]]]))
+    if not seen.all():
+        raise FileReadError(path, f"{int((~seen).sum()):,} point(s) in no tile file")
+    offsets = np.zeros(n + 1, np.int64)
+    np.cumsum(sizes, out=offsets[1:])
+    ring = np.empty(offsets[-1], np.int64)
+    for ids, s, r in parts:
+        dst = np.repeat(offsets[ids], s) + (np.arange(len(r)) - np.repeat(np.cumsum(s) - s, s))
+        ring[dst] = r
+    p = index.get("parameters", {})
+    info = {**p, "fans_open": int(is_open.sum()), "fans_rotated": int(rotated.sum()),
+            "duplicates_merged": 0, "tiles": tuple(index.get("tiles", ()))}
+    fc = FanCloud(points, offsets, ring, normals, is_open, rotated, {}, info)
+    if orient:  # the fans as built (the orientation's result depends on them), oriented
+        normals[turned] *= -1.0
+        sizes_t = np.diff(offsets)
+        at = np.flatnonzero(np.repeat(turned, sizes_t))
+        start = np.repeat(offsets[:-1], sizes_t)[at]
+        end = np.repeat(offsets[1:], sizes_t)[at]
+        ring[at] = ring[start + end - 1 - at]
+        no_plane = np.zeros(n, bool)
+        no_plane[np.asarray(index.get("no_plane", []), np.int64)] = True
+        fc = _F._orient_fans(fc, no_plane)
+    return fc
+
+
+def _chunk_source(source, chunk):
+    """A function giving a fresh iterator over the source's chunks."""
+    import os
+
+    from .io import read_point_chunks
+
+    if isinstance(chunk, bool) or not isinstance(chunk, int | np.integer) or chunk < 1:
+        raise FanCloudInputError(f"chunk must be a positive integer, got {chunk!r}")
+    if isinstance(source, str | bytes | os.PathLike):
+        path = source  # (a bad file raises with the first chunk)
+        return lambda: read_point_chunks(path, chunk=int(chunk))
+    pts = as_points(source)
+    return lambda: (pts[i:i + chunk] for i in range(0, len(pts), chunk))
+
+
+def _scan(chunks):
+    """(n, bounds lo, bounds hi, a random sample of up to _HALO_SAMPLE points), checking
+    that every coordinate is finite."""
+    n = 0
+    blo = np.full(3, np.inf)
+    bhi = np.full(3, -np.inf)
+    rng = np.random.default_rng(0)
+    keys = np.empty(0)
+    sample = np.empty((0, 3))
+    for c in chunks:
+        c = np.asarray(c, np.float64)
+        if c.ndim != 2 or c.shape[1] != 3:
+            raise FanCloudInputError(f"points must have shape (n, 3), got a chunk {c.shape}")
+        bad = ~np.isfinite(c).all(axis=1)
+        if bad.any():
+            row = n + int(np.flatnonzero(bad)[0])
+            raise FanCloudInputError(f"{int(bad.sum()):,} point(s) with NaN or infinite "
+                                     f"coordinates (the first: row {row:,})")
+        if len(c):
+            blo = np.minimum(blo, c.min(axis=0))
+            bhi = np.maximum(bhi, c.max(axis=0))
+            kc = rng.random(len(c))
+            keys = np.concatenate([keys, kc])
+            sample = np.concatenate([sample, c])
+            if len(keys) > _HALO_SAMPLE:
+                keep = np.argpartition(keys, _HALO_SAMPLE)[:_HALO_SAMPLE]
+                keys, sample = keys[keep], sample[keep]
+        n += len(c)
+    if n == 0:
+        raise FanCloudInputError("the input has no points")
+    return n, blo, bhi, sample
+
+
+def _auto_tiles(n, blo, bhi, tile_points) -> np.ndarray:
+    """About n / tile_points tiles, each cut made across the longest side of a tile."""
+    want = max(1, int(np.ceil(n / tile_points)))
+    t = np.ones(3, np.int64)
+    span = np.where(bhi > blo, bhi - blo, 0.0)
+    while t.prod() < want:
+        t[int(np.argmax(span / t))] += 1
+    return t
+
+
+def _box_grid(blo, bhi, t):
+    """The tiles' boxes (Morton order) and the grid of their numbers (see tile_boxes)."""
+    span = np.where(bhi > blo, bhi - blo, 1.0)
+    ijk = np.array([(i, j, m) for i in range(t[0]) for j in range(t[1]) for m in range(t[2])],
+                   np.int64).reshape(-1, 3)
+    ijk = ijk[np.argsort(_morton(ijk), kind="stable")]
+    number = np.empty(t, np.int64)
+    number[ijk[:, 0], ijk[:, 1], ijk[:, 2]] = np.arange(len(ijk))
+    lo = blo + span * ijk / t
+    hi = np.where(ijk + 1 == t, bhi, blo + span * (ijk + 1) / t)
+    return lo, hi, number
+
+
+def _owner(pts, blo, bhi, t, number) -> np.ndarray:
+    """The tile that owns each point (as tile_boxes)."""
+    span = np.where(bhi > blo, bhi - blo, 1.0)
+    cell = np.minimum(np.floor((pts - blo) / span * t).astype(np.int64), t - 1)
+    return number[cell[:, 0], cell[:, 1], cell[:, 2]]
+
+
+def _bucket(chunks, work, todo, lo, hi, widths, blo, bhi, t, number) -> dict:
+    """Append each chunk's points (and their global ids) in a tile's grown box to the
+    tile's files in ``work``; {tile: (owned, in the grown box)}."""
+    import os
+
+    counts = {i: [0, 0] for i in todo}
+    for i in todo:
+        for ext in (".xyz", ".ids"):
+            path = os.path.join(work, f"tile_{i:05d}{ext}")
+            if os.path.exists(path):
+                os.remove(path)
+    base = 0
+    for c in chunks:
+        c = np.asarray(c, np.float64)
+        clo, chi = c.min(axis=0), c.max(axis=0)
+        own = _owner(c, blo, bhi, t, number)
+        for i in todo:
+            glo, ghi = lo[i] - widths[i], hi[i] + widths[i]
+            if np.any(chi < glo) or np.any(clo > ghi):
+                continue
+            inside = np.flatnonzero(np.all((c >= glo) & (c <= ghi), axis=1))
+            if not len(inside):
+                continue
+            counts[i][0] += int(np.count_nonzero(own[inside] == i))
+            counts[i][1] += len(inside)
+            with open(os.path.join(work, f"tile_{i:05d}.xyz"), "ab") as fh:
+                c[inside].tofile(fh)
+            with open(os.path.join(work, f"tile_{i:05d}.ids"), "ab") as fh:
+                (inside + base).astype(np.int64).tofile(fh)
+        base += len(c)
+    return counts
+
+
+def _file_tile(work, i, lo, hi, width, blo, bhi, t, number, options, outdir, n):
+    """One tile's task: read its points, build their fans (with the halo's), check the
+    halo, orient over the tile, write ``tile_NNNN.vtp``; a summary dict."""
+    import os
+
+    sub = np.fromfile(os.path.join(work, f"tile_{i:05d}.xyz"), np.float64).reshape(-1, 3)
+    ids = np.fromfile(os.path.join(work, f"tile_{i:05d}.ids"), np.int64)
+    grid = _F.Grid(sub)
+    if grid.n_dup:
+        raise FanCloudInputError(f"duplicate points (at least {grid.n_dup:,} in tile {i}): "
+                                 "write_tiled_fans needs distinct points; merge them first")
+    own_mask = _owner(sub, blo, bhi, t, number) == i
+    own_loc = np.flatnonzero(own_mask)
+    k, max_angle, max_replacements, rule, rule_id, rotate, reach, sheets = options
+    fc, no_plane = _F._fans(sub, k, max_angle, max_replacements, rule, rule_id, rotate, reach,
+                            sheets, None, False, {}, 1, None)
+    needed = _halo_needed(sub, fc, own_loc, lo, hi, width, blo, bhi, k)
+    summary = {"tile": i, "built": len(sub), "owned": len(own_loc), "needed": needed}
+    if needed > width and len(sub) < n:
+        return summary  # the caller sorts the tile again with a wider halo
+    built = fc.normals
+    fc = _F._orient_fans(fc, no_plane, grid)
+    turned = (np.einsum("ij,ij->i", built, fc.normals) < 0).astype(np.uint8)
+    # the tile's fan cloud: its own points, then the other tiles' points their fans use
+    sizes = np.diff(fc.offsets)[own_loc]
+    take = np.repeat(fc.offsets[own_loc], sizes) + (
+        np.arange(sizes.sum()) - np.repeat(np.cumsum(sizes) - sizes, sizes))
+    ring_loc = fc.ring[take]
+    ghosts = np.setdiff1d(ring_loc[~own_mask[ring_loc]], [])
+    order = np.concatenate([own_loc, ghosts])
+    new = np.full(len(sub), -1, np.int64)
+    new[order] = np.arange(len(order))
+    offsets = np.zeros(len(order) + 1, np.int64)
+    offsets[1:len(own_loc) + 1] = np.cumsum(sizes)
+    offsets[len(own_loc) + 1:] = offsets[len(own_loc)]
+    ghost_type = np.zeros(len(order), np.uint8)
+    ghost_type[len(own_loc):] = 1
+    out = FanCloud(sub[order], offsets, new[ring_loc], fc.normals[order],
+                   fc.open[order] & (ghost_type == 0), fc.rotated[order] & (ghost_type == 0),
+                   {"GlobalPointIds": ids[order], "vtkGhostType": ghost_type,
+                    FAN_FLIPPED: turned[order]}, {})
+    name = f"tile_{i:04d}.vtp"
+    _write_tile(out, os.path.join(outdir, name))
+    # the normals other tiles compare with theirs: a sample (by global id) of the owned
+    # points and of the halo's
+    pick = _sampled(ids)
+    summary.update({
+        "file": name, "ghosts": len(ghosts), "open": int(fc.open[own_loc].sum()),
+        "no_plane": ids[own_loc[no_plane[own_loc]]],
+        "own_sample": (ids[pick & own_mask], fc.normals[pick & own_mask]),
+        "halo_sample": (ids[pick & ~own_mask], fc.normals[pick & ~own_mask]),
+    })
+    return summary
+
+
+def _halo_needed(sub, fc, loc, lo, hi, width, blo, bhi, k) -> float:
+    """The halo width the owned fans ``loc`` need (0 when ``width`` is enough): as
+    :func:`_tile`."""
+    if not len(loc):
+        return 0.0
+    p = sub[loc]
+    far, near = RingK.fan_radii(sub, fc.offsets, fc.ring, loc, min(2 * k, len(sub) - 1),
+                                2 * numba.get_num_threads())
+    few = near < 0
+    if few.any():
+        kq = min(2 * k + 1, len(sub))
+        d = cKDTree(sub).query(p[few], k=kq)[0]
+        near[few] = d[:, -1] if d.ndim == 2 else d
+    need = np.where(fc.open[loc], OPEN_MARGIN, MARGIN) * np.maximum(far, near)
+    glo, ghi = lo - width, hi + width
+    room = np.minimum(np.where(glo > blo, p - glo, np.inf),
+                      np.where(ghi < bhi, ghi - p, np.inf)).min(axis=1)
+    short = need > room
+    if not short.any():
+        return 0.0
+    inner = np.minimum(np.where(glo > blo, p - lo, np.inf),
+                       np.where(ghi < bhi, hi - p, np.inf)).min(axis=1)
+    return float((need - inner)[short].max())
+
+
+def _sampled(ids) -> np.ndarray:
+    """The points whose global id hashes to 0 modulo _SAMPLE_MODULUS (the same on every
+    tile, so two tiles' samples meet)."""
+    h = (ids.astype(np.uint64) * np.uint64(2654435761)) >> np.uint64(7)
+    return (h % np.uint64(_SAMPLE_MODULUS)) == 0
+
+
+def _empty_summary(i, lo, hi, width) -> dict:
+    return {"tile": i, "built": 0, "owned": 0, "needed": 0.0, "file": "", "ghosts": 0,
+            "open": 0, "no_plane": np.empty(0, np.int64),
+            "own_sample": (np.empty(0, np.int64), np.empty((0, 3))),
+            "halo_sample": (np.empty(0, np.int64), np.empty((0, 3)))}
+
+
+def _tile_flips(summaries) -> np.ndarray:
+    """Which tiles to flip so that their normals agree: on the points a tile's halo shares
+    with another tile's own points, the sign of the normals' dot products votes; the tiles
+    are then walked from the one with the most points, strongest agreement first."""
+    import heapq
+
+    m = len(summaries)
+    own_ids = np.concatenate([s["own_sample"][0] for s in summaries])
+    own_nrm = np.concatenate([s["own_sample"][1] for s in summaries])
+    own_tile = np.concatenate([np.full(len(s["own_sample"][0]), s["tile"]) for s in summaries])
+    order = np.argsort(own_ids)
+    own_ids, own_nrm, own_tile = own_ids[order], own_nrm[order], own_tile[order]
+    votes = np.zeros((m, m))
+    for s in summaries:
+        hid, hn = s["halo_sample"]
+        if not len(hid) or not len(own_ids):
+            continue
+        pos = np.clip(np.searchsorted(own_ids, hid), 0, len(own_ids) - 1)
+        hit = own_ids[pos] == hid
+        dots = np.einsum("ij,ij->i", hn[hit], own_nrm[pos[hit]])
+        np.add.at(votes, (np.full(hit.sum(), s["tile"]), own_tile[pos[hit]]), np.sign(dots))
+    votes = votes + votes.T
+    flips = np.zeros(m, bool)
+    done = np.zeros(m, bool)
+    for root in np.argsort([-s["owned"] for s in summaries], kind="stable"):
+        if done[root]:
+            continue
+        done[root] = True
+        heap = [(-abs(votes[root, j]), int(root), int(j)) for j in range(m) if votes[root, j]]
+        heapq.heapify(heap)
+        while heap:
+            _, a, b = heapq.heappop(heap)
+            if done[b]:
+                continue
+            done[b] = True
+            flips[b] = flips[a] ^ (votes[a, b] < 0)
+            for j in range(m):
+                if votes[b, j] and not done[j]:
+                    heapq.heappush(heap, (-abs(votes[b, j]), b, j))
+    return flips
+
+
+def _flip_tile_file(path) -> None:
+    """A tile file with its normals negated and its rings reversed."""
+    from .algorithms.convert import fancloud_from_vtk, read_vtp
+
+    fc = fancloud_from_vtk(read_vtp(path))
+    sizes = np.diff(fc.offsets)
+    idx = np.arange(len(fc.ring))
+    start = np.repeat(fc.offsets[:-1], sizes)
+    end = np.repeat(fc.offsets[1:], sizes)
+    ring = fc.ring[start + end - 1 - idx]
+    pdata = dict(fc.point_data)
+    pdata[FAN_FLIPPED] = (pdata[FAN_FLIPPED] ^ 1).astype(np.uint8)
+    _write_tile(FanCloud(fc.points, fc.offsets, ring, -fc.normals, fc.open, fc.rotated,
+                         pdata, {}), path)
+
+
+def _write_tile(fc, path) -> None:
+    """``fc`` to ``path`` under a temporary name first (a killed task leaves no half file
+    under the real name)."""
+    import os
+
+    from .algorithms.convert import fancloud_to_vtk, write_vtp
+
+    tmp = f"{path}.{os.getpid()}.tmp.vtp"
+    write_vtp(fancloud_to_vtk(fc), tmp)
+    os.replace(tmp, path)
+
+
+def _write_atomic(path, text) -> None:
+    import os
+
+    tmp = f"{path}.{os.getpid()}.tmp"
+    with open(tmp, "w") as fh:
+        fh.write(text)
+    os.replace(tmp, path)
+
+
+def _vtpd(files) -> str:
+    """VTK's partitioned dataset file listing the tiles' ``.vtp`` files."""
+    rows = "\n".join(f'    <DataSet index="{j}" file="{f}"/>' for j, f in enumerate(files))
+    return ('<?xml version="1.0"?>\n<VTKFile type="vtkPartitionedDataSet" version="1.0" '
+            'byte_order="LittleEndian" header_type="UInt64">\n  <vtkPartitionedDataSet>\n'
+            f"{rows}\n  </vtkPartitionedDataSet>\n</VTKFile>\n")
+
+
+def _auto_halo_sample(sample, n, k) -> float:
+    """:func:`_auto_halo` from a sample already drawn."""
+    m = len(sample)
+    d = cKDTree(sample).query(sample[: min(m, 2000)], k=min(2 * k + 1, m))[0][:, -1]
+    return float(3.0 * MARGIN * np.median(d) * np.sqrt(m / n))
+
+
+def _client_for(scheduler, workers):
+    """(client or None, closer or None): None makes a LocalCluster of single-threaded
+    worker processes; an address connects; a client or a scheduler name is used as is."""
+    if scheduler is None:
+        import os
+
+        from dask.distributed import Client, LocalCluster
+
+        if workers is not None and (isinstance(workers, bool) or
+                                    not isinstance(workers, int | np.integer) or workers < 1):
+            raise FanCloudInputError(f"workers must be a positive integer, got {workers!r}")
+        nw = int(workers) if workers is not None else (os.cpu_count() or 1)
+        cluster = LocalCluster(n_workers=nw, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        client = Client(cluster)
+
+        def close():
+            client.close()
+            cluster.close()
+        return client, close
+    if isinstance(scheduler, str) and "://" in scheduler:
+        from dask.distributed import Client
+
+        client = Client(scheduler)
+        return client, client.close
+    if isinstance(scheduler, str):
+        return None, None
+    if all(hasattr(scheduler, name) for name in ("compute", "gather", "submit")):
+        return scheduler, None
+    raise TypeError("scheduler must be None, a Dask scheduler name, a scheduler address or a "
+                    f"dask.distributed.Client, got {scheduler!r}")
+
+
+def _map_tasks(dask, client, scheduler, fn, jobs, done):
+    """``fn(*job)`` for every job, yielded as they finish; ``done(count)`` after each."""
+    if not jobs:
+        return
+    if client is not None:
+        from dask.distributed import as_completed
+
+        futures = client.map(fn, *zip(*jobs, strict=True), pure=False)
+        for j, fut in enumerate(as_completed(futures), 1):
+            res = fut.result()
+            if done is not None:
+                done(j)
+            yield res
+        return
+    step = max(1, (numba.get_num_threads() if scheduler != "sync" else 1))
+    count = 0
+    for s in range(0, len(jobs), step):
+        batch = [dask.delayed(fn, pure=False)(*job) for job in jobs[s:s + step]]
+        for res in dask.compute(*batch, scheduler=scheduler):
+            count += 1
+            if done is not None:
+                done(count)
+            yield res

@@ -20,7 +20,7 @@ import io
 import os
 import re
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,6 +32,7 @@ __all__ = [
     "DroppedArrayWarning",
     "FileReadError",
     "PointCloudFile",
+    "read_point_chunks",
     "read_point_cloud",
 ]
 
@@ -47,6 +48,8 @@ SUPPORTED_FORMATS: tuple[str, ...] = (
     "pts",
     "txt",
     "npy",
+    "las",
+    "laz",
 )
 
 _UNIT_NORMAL_TOL = 1e-2
@@ -1003,6 +1006,44 @@ def _read_npy(path: str) -> PointCloudFile:
     return _columns_to_cloud(path, arr)
 
 
+def _laspy(path: str):
+    try:
+        import laspy
+    except ImportError as exc:
+        raise FileReadError(path, 'reading LAS/LAZ needs laspy: pip install "laspy[lazrs]" '
+                                  '(or "fancloud-vtk[distributed]")') from exc
+    return laspy
+
+
+def _las_xyz(points) -> np.ndarray:
+    """A laspy point record's scaled coordinates as an (n, 3) float64 array."""
+    return np.column_stack([np.asarray(points.x, np.float64), np.asarray(points.y, np.float64),
+                            np.asarray(points.z, np.float64)])
+
+
+def _read_las(path: str) -> PointCloudFile:
+    laspy = _laspy(path)
+    try:
+        las = laspy.read(path)
+    except Exception as exc:  # laspy raises many types on bad input
+        raise FileReadError(path, f"not a valid LAS/LAZ file ({type(exc).__name__}: {exc})") \
+            from exc
+    points = _las_xyz(las)
+    if len(points) == 0:
+        raise FileReadError(path, "the LAS/LAZ file contains no points")
+    names = set(las.point_format.dimension_names)
+    point_data: dict[str, np.ndarray] = {}
+    if {"red", "green", "blue"} <= names:
+        rgb = np.column_stack([np.asarray(las[c]) for c in ("red", "green", "blue")])
+        point_data["RGB"] = (rgb >> 8).astype(np.uint8) if rgb.max(initial=0) > 255 \
+            else rgb.astype(np.uint8)
+    for name in ("intensity", "classification", "return_number"):
+        if name in names:
+            point_data[name] = np.array(las[name])
+    return _finish(path, points, point_data, None)
+
+
+
 # ----------------------------------------------------------------------------- public
 
 
@@ -1017,6 +1058,8 @@ _READERS: dict[str, Callable[[str], PointCloudFile]] = {
     "pts": _read_text,
     "txt": _read_text,
     "npy": _read_npy,
+    "las": lambda p: _read_las(p),
+    "laz": lambda p: _read_las(p),
 }
 
 
@@ -1074,3 +1117,145 @@ def read_point_cloud(path: str | os.PathLike[str], *, format: str | None = None)
                 f"unknown file extension ({shown}); supported: {supported} (or pass format=...)",
             )
     return _READERS[fmt](path)
+
+
+def read_point_chunks(path: str | os.PathLike[str], *, chunk: int = 1_000_000,
+                      format: str | None = None) -> Iterator[np.ndarray]:
+    """The points of a file, ``chunk`` at a time, without reading the file whole.
+
+    For clouds larger than memory (:func:`fancloud_vtk.distributed.write_tiled_fans`
+    reads its input this way). ``.npy`` is memory-mapped, binary PLY is memory-mapped
+    (its vertex element, through ``plyfile``), ascii PLY is read line by line, LAS and LAZ
+    through ``laspy``'s chunk iterator. Any other format is read whole by
+    :func:`read_point_cloud` and handed out in chunks. Only the coordinates are read.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file (never modified).
+    chunk : int, default: 1_000_000
+        Points per chunk (the last may be shorter).
+    format : str, optional
+        As in :func:`read_point_cloud`.
+
+    Yields
+    ------
+    numpy.ndarray
+        ``(m, 3)`` float64 coordinates, in the file's order (not checked for NaN: the
+        caller does, knowing the rows' numbers).
+
+    Raises
+    ------
+    FileReadError
+        As :func:`read_point_cloud` (raised by the first ``next``).
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, os
+    >>> path = os.path.join(tempfile.mkdtemp(), "cloud.npy")
+    >>> np.save(path, np.random.default_rng(0).random((2500, 3)))
+    >>> [len(c) for c in read_point_chunks(path, chunk=1000)]
+    [1000, 1000, 500]
+    """
+    if isinstance(chunk, bool) or not isinstance(chunk, int | np.integer) or chunk < 1:
+        raise ValueError(f"chunk must be a positive integer, got {chunk!r}")
+    path = os.fspath(path)
+    if isinstance(path, bytes):
+        path = os.fsdecode(path)
+    fmt = (format or os.path.splitext(path)[1]).lower().lstrip(".")
+    if not os.path.isfile(path) or fmt not in ("npy", "ply", "las", "laz"):
+        cloud = read_point_cloud(path, format=format)  # raises the reader's FileReadError
+        yield from _slices(cloud.points, chunk)
+        return
+    if os.path.getsize(path) == 0:
+        raise FileReadError(path, "the file is empty (0 bytes)")
+    if fmt == "npy":
+        try:
+            arr = np.load(path, mmap_mode="r", allow_pickle=False)
+        except Exception as exc:
+            raise FileReadError(path, f"not a valid .npy file ({type(exc).__name__}: {exc})") \
+                from exc
+        if arr.dtype.names is not None or arr.dtype.kind not in "iuf" or arr.ndim != 2 \
+                or arr.shape[1] < 3 or arr.shape[0] == 0:
+            raise FileReadError(path, f"expected an (n, >=3) real array, got {arr.dtype} "
+                                      f"{arr.shape}")
+        yield from _slices(arr[:, :3], chunk)
+    elif fmt in ("las", "laz"):
+        laspy = _laspy(path)
+        try:
+            reader = laspy.open(path)
+        except Exception as exc:
+            raise FileReadError(path, f"not a valid LAS/LAZ file ({type(exc).__name__}: "
+                                      f"{exc})") from exc
+        with reader:
+            if reader.header.point_count == 0:
+                raise FileReadError(path, "the LAS/LAZ file contains no points")
+            for points in reader.chunk_iterator(int(chunk)):
+                yield _las_xyz(points)
+    else:
+        yield from _ply_chunks(path, int(chunk))
+
+
+def _slices(arr, chunk: int) -> Iterator[np.ndarray]:
+    for i in range(0, len(arr), chunk):
+        yield np.array(arr[i:i + chunk], dtype=np.float64)
+
+
+def _ply_chunks(path: str, chunk: int) -> Iterator[np.ndarray]:
+    """A PLY file's vertex coordinates in chunks: binary memory-mapped, ascii streamed."""
+    import plyfile
+
+    with open(path, "rb") as fh:
+        head = fh.read(1024)
+    if b"\nformat ascii " not in head:
+        try:
+            ply = plyfile.PlyData.read(path, mmap="r")
+            vertex = ply["vertex"].data
+        except Exception as exc:
+            raise FileReadError(path, f"not a valid PLY file ({type(exc).__name__}: {exc})") \
+                from exc
+        if len(vertex) == 0 or any(c not in (vertex.dtype.names or ()) for c in "xyz"):
+            raise FileReadError(path, "PLY vertex element is empty or lacks x, y, z")
+        for i in range(0, len(vertex), chunk):
+            rows = vertex[i:i + chunk]
+            yield np.column_stack([np.asarray(rows[c], np.float64) for c in "xyz"])
+        return
+    # ascii: the header names the columns; the vertex element must come first
+    import itertools
+
+    with open(path, "rb") as fh:
+        props: list[str] = []
+        element, count, first = None, 0, None
+        for line in fh:
+            words = line.split()
+            if not words:
+                continue
+            if words[0] == b"element":
+                element = words[1]
+                if element == b"vertex":
+                    count = int(words[2])
+                if first is None:
+                    first = element
+            elif words[0] == b"property" and element == b"vertex":
+                if words[1] == b"list":
+                    raise FileReadError(path, "ascii PLY vertex with a list property: read it "
+                                              "with read_point_cloud")
+                props.append(words[-1].decode())
+            elif words[0] == b"end_header":
+                break
+        if first != b"vertex" or count == 0 or any(c not in props for c in "xyz"):
+            raise FileReadError(path, "ascii PLY: the first element must be a non-empty "
+                                      "'vertex' with x, y, z")
+        cols = [props.index(c) for c in "xyz"]
+        left = count
+        while left:
+            lines = list(itertools.islice(fh, min(chunk, left)))
+            if not lines:
+                raise FileReadError(path, f"ascii PLY ends after {count - left:,} of "
+                                          f"{count:,} vertices")
+            try:
+                block = np.loadtxt(lines, usecols=cols, ndmin=2, dtype=np.float64)
+            except ValueError as exc:
+                raise FileReadError(path, f"ascii PLY vertex rows: {exc}") from exc
+            left -= len(lines)
+            yield block

@@ -210,3 +210,206 @@ def test_a_worker_killed_mid_run_leaves_the_same_fans():
         run.join(timeout=300)
         assert not run.is_alive()
     assert same(out["fc"], one)
+
+
+# ----------------------------------------------------------------------------- out of core
+
+
+def tile_folder_files(outdir):
+    import os
+
+    return sorted(os.listdir(outdir))
+
+
+@pytest.mark.parametrize("name, tiles", [("sphere", (2, 2, 2)), ("ramp_with_gap", (4, 4, 1)),
+                                         ("cube", (2, 2, 1)), ("terrain_grid", (3, 3, 1))])
+def test_tiles_written_and_read_back_are_the_fans_of_one_process(tmp_path, name, tiles):
+    """write_tiled_fans streams the points in chunks, writes one file per tile; read_tiles
+    gives build_fans' fan cloud bit for bit; each tile's file is a fan cloud of its own
+    points (then its ghosts), and its normals agree with its neighbours'."""
+    from fancloud_vtk import load
+
+    points = CLOUDS[name]()
+    one = build_fans(points)
+    index = D.write_tiled_fans(points, tmp_path, tiles=tiles, scheduler="sync", chunk=7_000)
+    m = int(np.prod(tiles))
+    assert len(index["tile_list"]) == m
+    files = [t["file"] for t in index["tile_list"] if t["file"]]
+    assert tile_folder_files(tmp_path) == sorted(["index.json", "fans.vtpd", *files])
+    assert sum(t["owned"] for t in index["tile_list"]) == len(points)
+    assert same(D.read_tiles(tmp_path), one)
+    # the tiles as written: their own fans, normals agreeing with one process's up to one
+    # sign over the whole cloud (tiles were flipped to agree; a stray point's orientation
+    # may differ within a tile), ghosts without fans
+    unoriented = D.read_tiles(tmp_path, orient=False)
+    assert np.array_equal(np.diff(unoriented.offsets), np.diff(one.offsets))
+    dots = np.einsum("ij,ij->i", unoriented.normals, one.normals)
+    assert np.abs(np.abs(dots) - 1).max() < 1e-12
+    assert max((dots > 0).mean(), (dots < 0).mean()) > 0.999
+    tile = load(tmp_path / files[0])
+    ghost = tile.point_data["vtkGhostType"]
+    own = index["tile_list"][0]["owned"] if index["tile_list"][0]["file"] == files[0] else None
+    if own is not None:
+        assert (ghost[:own] == 0).all() and (ghost[own:] == 1).all()
+        assert (np.diff(tile.offsets)[own:] == 0).all()
+        np.testing.assert_array_equal(tile.points, points[tile.point_data["GlobalPointIds"]])
+
+
+def test_tiles_of_an_open_sheet_are_flipped_to_agree(tmp_path):
+    """On an open wavy sheet each tile's own orientation picks a side at random: tiles are
+    flipped so that the written normals all agree."""
+    from fancloud_vtk import load
+
+    points = terrain_grid(150)
+    index = D.write_tiled_fans(points, tmp_path, tiles=(4, 4, 1), scheduler="sync")
+    flipped = [t["flipped"] for t in index["tile_list"]]
+    unoriented = D.read_tiles(tmp_path, orient=False)
+    up = (unoriented.normals[:, 2] > 0).mean()
+    assert max(up, 1 - up) > 0.999
+    assert any(flipped)  # (each tile's own orientation did not agree by itself)
+    # a flipped tile's file was rewritten: its rings reversed with its normals
+    for t in index["tile_list"]:
+        fc = load(tmp_path / t["file"])
+        own = t["owned"]
+        tri = fc.fan_triangles()
+        a, b, c = fc.points[tri[:, 0]], fc.points[tri[:, 1]], fc.points[tri[:, 2]]
+        face = np.cross(b - a, c - a)
+        assert (np.einsum("ij,ij->i", face, fc.normals[tri[:, 0]]) > 0).mean() > 0.99
+        assert own == int((fc.point_data["vtkGhostType"] == 0).sum())
+
+
+@pytest.mark.parametrize("fmt", ["npy", "ply", "ply-ascii", "las", "laz", "xyz"])
+def test_files_are_read_in_chunks(tmp_path, fmt):
+    """read_point_chunks: every format hands out the file's points in order, chunk by
+    chunk (npy and binary PLY memory-mapped, ascii PLY streamed, LAS/LAZ through laspy)."""
+    from fancloud_vtk.io import read_point_chunks
+
+    points = np.round(sphere(2_500, seed=5) * 1000) / 1000  # LAS stores 1e-3 steps
+    path = tmp_path / f"cloud.{fmt.split('-')[0]}"
+    if fmt == "npy":
+        np.save(path, points)
+    elif fmt.startswith("ply"):
+        import plyfile
+
+        v = np.empty(len(points), [("x", "f8"), ("y", "f8"), ("z", "f8"), ("q", "u1")])
+        v["x"], v["y"], v["z"], v["q"] = points[:, 0], points[:, 1], points[:, 2], 7
+        plyfile.PlyData([plyfile.PlyElement.describe(v, "vertex")],
+                        text=fmt == "ply-ascii").write(str(path))
+    elif fmt in ("las", "laz"):
+        laspy = pytest.importorskip("laspy")
+        header = laspy.LasHeader(point_format=3, version="1.2")
+        header.scales = np.array([1e-3, 1e-3, 1e-3])
+        header.offsets = np.zeros(3)
+        las = laspy.LasData(header)
+        las.x, las.y, las.z = points[:, 0], points[:, 1], points[:, 2]
+        las.write(str(path))
+    else:
+        np.savetxt(path, points)
+    chunks = list(read_point_chunks(path, chunk=1_000))
+    assert [len(c) for c in chunks] == [1_000, 1_000, 500]
+    assert all(c.dtype == np.float64 and c.shape[1] == 3 for c in chunks)
+    np.testing.assert_allclose(np.concatenate(chunks), points, atol=1e-9)
+    if fmt in ("las", "laz"):
+        from fancloud_vtk.io import read_point_cloud
+
+        np.testing.assert_allclose(read_point_cloud(path).points, points, atol=1e-9)
+
+
+def test_bad_chunked_input_is_refused(tmp_path):
+    from fancloud_vtk.io import FileReadError, read_point_chunks
+
+    points = sphere(5_000)
+    bad = points.copy()
+    bad[3_210, 1] = np.nan
+    np.save(tmp_path / "nan.npy", bad)
+    with pytest.raises(FanCloudInputError, match="row 3,210"):
+        D.write_tiled_fans(tmp_path / "nan.npy", tmp_path / "out", scheduler="sync",
+                           chunk=1_000)
+    assert not (tmp_path / "out" / "index.json").exists()
+    (tmp_path / "text.npy").write_text("not an array")
+    with pytest.raises(FileReadError, match="not a valid .npy"):
+        D.write_tiled_fans(tmp_path / "text.npy", tmp_path / "out2", scheduler="sync")
+    with pytest.raises(FileReadError, match="no such file"):
+        list(read_point_chunks(tmp_path / "missing.npy"))
+    with pytest.raises(ValueError, match="chunk"):
+        list(read_point_chunks(tmp_path / "nan.npy", chunk=0))
+    dup = np.concatenate([points, points[:10]])
+    with pytest.raises(FanCloudInputError, match="duplicate"):
+        D.write_tiled_fans(dup, tmp_path / "dup", tiles=(2, 1, 1), scheduler="sync")
+    done = D.write_tiled_fans(points, tmp_path / "ok", tiles=(1, 1, 2), scheduler="sync")
+    assert done["n_points"] == len(points)
+    with pytest.raises(FanCloudInputError, match="already holds"):
+        D.write_tiled_fans(points, tmp_path / "ok", scheduler="sync")
+    with pytest.raises(FanCloudInputError, match="tile_points"):
+        D.write_tiled_fans(points, tmp_path / "tp", tile_points=10, scheduler="sync")
+    with pytest.raises(FileReadError, match="no index"):
+        D.read_tiles(tmp_path / "dup")
+
+
+def test_auto_tiles_cut_the_longest_sides():
+    t = D._auto_tiles(10_000_000, np.zeros(3), np.array([4.0, 2.0, 0.1]), 1_000_000)
+    assert t.prod() >= 10 and t[2] == 1 and t[0] >= t[1]
+    assert D._auto_tiles(10, np.zeros(3), np.ones(3), 1_000).tolist() == [1, 1, 1]
+
+
+def test_the_command_writes_tiles_on_a_local_cluster(tmp_path, capsys):
+    """``fancloud fans BIG.npy -o OUTDIR --tiles auto --workers 2``: a LocalCluster, the
+    input read in chunks; the folder read back is build_fans'."""
+    pytest.importorskip("dask.distributed")
+    from fancloud_vtk.cli import main
+
+    points = sphere(60_000, seed=8)
+    np.save(tmp_path / "big.npy", points)
+    out = tmp_path / "tiles"
+    code = main(["fans", str(tmp_path / "big.npy"), "-o", str(out), "--tiles", "auto",
+                 "--tile-points", "20000", "--workers", "2", "--chunk", "25000"])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "tiles" in text and "60,000" in text
+    assert same(D.read_tiles(out), build_fans(points))
+    with pytest.raises(SystemExit):  # argparse: exit code 2 and the usage
+        main(["fans", str(tmp_path / "big.npy"), "-o", str(out), "--tiles", "1,1"])
+    assert "expected 'auto' or three positive integers" in capsys.readouterr().err
+    assert main(["fans", str(tmp_path / "big.npy"), "-o", str(tmp_path / "x.vtp"),
+                 "--workers", "2"]) == 2
+    assert "--workers goes with --tiles" in capsys.readouterr().err
+
+
+def test_a_worker_killed_while_writing_tiles_leaves_a_complete_folder(tmp_path):
+    """A LocalCluster worker killed while tiles run: its tiles run again elsewhere, the
+    folder holds the index, the .vtpd and one file per tile, nothing half-written, and it
+    reads back as build_fans' fan cloud."""
+    import os
+    import signal
+    import threading
+    import time
+
+    distributed = pytest.importorskip("dask.distributed")
+    points = sphere(300_000, seed=9)
+    one = build_fans(points)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        D.write_tiled_fans(points[:20_000], tmp_path / "warm", tiles=(2, 1, 1),
+                           scheduler=client)  # kernels loaded
+        pids = client.run(os.getpid)
+        out = {}
+        run = threading.Thread(target=lambda: out.setdefault("index", D.write_tiled_fans(
+            points, tmp_path / "run", tiles=(4, 2, 1), scheduler=client)))
+        run.start()
+        killed = None
+        deadline = time.monotonic() + 60
+        while killed is None and time.monotonic() < deadline and run.is_alive():
+            busy = [w for w, tasks in client.processing().items() if tasks]
+            if busy:
+                killed = pids[busy[0]]
+                os.kill(killed, signal.SIGKILL)
+            else:
+                time.sleep(0.01)
+        assert killed is not None, "no tile was running on a worker"
+        assert run.is_alive(), "the run had finished before the kill"
+        run.join(timeout=300)
+        assert not run.is_alive()
+    files = [t["file"] for t in out["index"]["tile_list"]]
+    assert tile_folder_files(tmp_path / "run") == sorted(["index.json", "fans.vtpd", *files])
+    assert same(D.read_tiles(tmp_path / "run"), one)

@@ -1126,12 +1126,12 @@ def test_empty_file_is_an_error(tmp_path, ext):
 
 
 def test_unknown_extension_lists_supported_formats(tmp_path):
-    path = tmp_path / "cloud.las"
+    path = tmp_path / "cloud.e57"
     path.write_text("0 0 0\n")
-    with pytest.raises(FileReadError, match=r"unknown file extension \('\.las'\).*ply.*npy"):
+    with pytest.raises(FileReadError, match=r"unknown file extension \('\.e57'\).*ply.*npy"):
         read_point_cloud(path)
-    with pytest.raises(FileReadError, match=r"unknown format 'las'"):
-        read_point_cloud(path, format="las")
+    with pytest.raises(FileReadError, match=r"unknown format 'e57'"):
+        read_point_cloud(path, format="e57")
     noext = tmp_path / "cloud"
     noext.write_text("0 0 0\n")
     with pytest.raises(FileReadError, match="no extension"):
