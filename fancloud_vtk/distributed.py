@@ -625,7 +625,8 @@ def write_tiled_fans(
         "tile_list": [
             {"tile": i, "file": s["file"], "box": [lo[i].tolist(), hi[i].tolist()],
              "halo": float(widths[i]), "owned": s["owned"], "built": s["built"],
-             "ghosts": s["ghosts"], "open": s["open"], "flipped": bool(flips[i])}
+             "ghosts": s["ghosts"], "open": s["open"], "flipped": bool(flips[i]),
+             "seconds": float(s["seconds"]), "worker_peak_mb": float(s["peak_mb"])}
             for i, s in enumerate(summaries)],
         "no_plane": np.sort(no_plane).tolist(),
         "timings": timings,
@@ -814,10 +815,21 @@ def _bucket(chunks, work, todo, lo, hi, widths, blo, bhi, t, number) -> dict:
             if os.path.exists(path):
                 os.remove(path)
     base = 0
+    uniform = len(todo) == len(lo) and np.all(widths == widths[0])
     for c in chunks:
         c = np.asarray(c, np.float64)
         clo, chi = c.min(axis=0), c.max(axis=0)
         own = _owner(c, blo, bhi, t, number)
+        if uniform:  # every tile, one width: each point's few tiles, not every tile
+            for i, inside in _grown_members(c, lo, hi, float(widths[0]), t, number):
+                counts[i][0] += int(np.count_nonzero(own[inside] == i))
+                counts[i][1] += len(inside)
+                with open(os.path.join(work, f"tile_{i:05d}.xyz"), "ab") as fh:
+                    c[inside].tofile(fh)
+                with open(os.path.join(work, f"tile_{i:05d}.ids"), "ab") as fh:
+                    (inside + base).astype(np.int64).tofile(fh)
+            base += len(c)
+            continue
         for i in todo:
             glo, ghi = lo[i] - widths[i], hi[i] + widths[i]
             if np.any(chi < glo) or np.any(clo > ghi):
@@ -835,11 +847,47 @@ def _bucket(chunks, work, todo, lo, hi, widths, blo, bhi, t, number) -> dict:
     return counts
 
 
+def _grown_members(c, lo, hi, width, t, number):
+    """(tile, sorted row numbers of ``c`` in its box grown by ``width``) for every tile that
+    gets any: per axis, the cells whose grown interval holds the coordinate (the same
+    comparisons as ``lo - width <= x <= hi + width``), then their combinations."""
+    ranges = []
+    for a in range(3):
+        edge_lo = np.array([lo[number.take(j, axis=a).ravel()[0], a] for j in range(t[a])])
+        edge_hi = np.array([hi[number.take(j, axis=a).ravel()[0], a] for j in range(t[a])])
+        x = c[:, a]
+        first = np.searchsorted(edge_hi + width, x, side="left")  # edge_hi + w >= x
+        last = np.searchsorted(edge_lo - width, x, side="right") - 1  # edge_lo - w <= x
+        ranges.append((np.clip(first, 0, t[a] - 1), np.clip(last, 0, t[a] - 1)))
+    rows_all, tiles_all = [], []
+    span = [int((r[1] - r[0]).max(initial=0)) + 1 for r in ranges]
+    for dx in range(span[0]):
+        for dy in range(span[1]):
+            for dz in range(span[2]):
+                ci = ranges[0][0] + dx
+                cj = ranges[1][0] + dy
+                ck = ranges[2][0] + dz
+                ok = (ci <= ranges[0][1]) & (cj <= ranges[1][1]) & (ck <= ranges[2][1])
+                rows = np.flatnonzero(ok)
+                rows_all.append(rows)
+                tiles_all.append(number[ci[rows], cj[rows], ck[rows]])
+    rows = np.concatenate(rows_all)
+    tiles = np.concatenate(tiles_all)
+    order = np.lexsort((rows, tiles))
+    rows, tiles = rows[order], tiles[order]
+    cut = np.flatnonzero(np.diff(tiles)) + 1
+    for part_rows, part_tiles in zip(np.split(rows, cut), np.split(tiles, cut), strict=True):
+        if len(part_rows):
+            yield int(part_tiles[0]), part_rows
+
+
 def _file_tile(work, i, lo, hi, width, blo, bhi, t, number, options, outdir, n):
     """One tile's task: read its points, build their fans (with the halo's), check the
     halo, orient over the tile, write ``tile_NNNN.vtp``; a summary dict."""
     import os
+    import resource
 
+    t_start = time.perf_counter()
     sub = np.fromfile(os.path.join(work, f"tile_{i:05d}.xyz"), np.float64).reshape(-1, 3)
     ids = np.fromfile(os.path.join(work, f"tile_{i:05d}.ids"), np.int64)
     grid = _F.Grid(sub)
@@ -886,6 +934,8 @@ def _file_tile(work, i, lo, hi, width, blo, bhi, t, number, options, outdir, n):
         "no_plane": ids[own_loc[no_plane[own_loc]]],
         "own_sample": (ids[pick & own_mask], fc.normals[pick & own_mask]),
         "halo_sample": (ids[pick & ~own_mask], fc.normals[pick & ~own_mask]),
+        "seconds": time.perf_counter() - t_start,
+        "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
     })
     return summary
 
@@ -924,7 +974,7 @@ def _sampled(ids) -> np.ndarray:
 
 def _empty_summary(i, lo, hi, width) -> dict:
     return {"tile": i, "built": 0, "owned": 0, "needed": 0.0, "file": "", "ghosts": 0,
-            "open": 0, "no_plane": np.empty(0, np.int64),
+            "open": 0, "no_plane": np.empty(0, np.int64), "seconds": 0.0, "peak_mb": 0.0,
             "own_sample": (np.empty(0, np.int64), np.empty((0, 3))),
             "halo_sample": (np.empty(0, np.int64), np.empty((0, 3)))}
 

@@ -605,16 +605,26 @@ def test_a_result_is_written_with_its_header_and_its_rows(tmp_path):
 
 
 def test_bench_tiles_compares_the_tiles_with_one_process(tmp_path, capsys):
-    """Small: one process and Dask's threads (the cluster mode is the same plumbing with a
-    LocalCluster, tested in test_distributed.py); the fan clouds' digests agree."""
+    """Small: one process, Dask's threads and out of core from a file on a one-worker
+    LocalCluster (the cluster mode is the same plumbing as threads with a LocalCluster,
+    tested in test_distributed.py); the fan clouds' digests agree; the out-of-core run is
+    extrapolated."""
     out = tmp_path / "bt"
     assert cli_main(["bench", "tiles", "--sizes", "30k", "--tiles", "2,2,1", "--modes", "one",
-                     "threads", "--out", str(out), "-q"]) == 0
+                     "threads", "files", "--workers", "1", "--tile-points", "10000",
+                     "--extrapolate", "1M", "--extrapolate-workers", "2,4",
+                     "--out", str(out), "-q"]) == 0
     res = json.loads((out / "tiles.json").read_text())
     by_figure = {r["figure"]: r for r in res["rows"]}
     same = by_figure["tiles: same fan cloud as one process, tiled_fans 2x2x1, Dask threads"]
     assert same["measured"] == "yes" and same["verdict"] == "yes"
     assert float(by_figure["tiles: wall time, one process, build_fans"]["measured"]) > 0
     assert "tiles: ratio tiled_fans 2x2x1, Dask threads / one process" in by_figure
-    assert {r["mode"] for r in res["runs"]} == {"one", "threads"}
+    assert {r["mode"] for r in res["runs"]} == {"one", "threads", "files"}
+    files = "write_tiled_fans from .npy (out of core), LocalCluster 1 workers x 1 thread"
+    assert by_figure[f"tiles: same fan cloud as one process, {files}"]["measured"] == "yes"
+    ext = [e for e in res["extrapolation"]]
+    assert [e["workers"] for e in ext] == [2, 4] and ext[0]["n"] == 1_000_000
+    assert ext[0]["time"] > ext[1]["time"] > 0 and ext[0]["tiles"] >= 30
+    assert "tiles: extrapolated wall time, 1M points, 4 workers" in by_figure
     assert "fancloud bench tiles" in capsys.readouterr().out

@@ -28,7 +28,9 @@ from fancloud_vtk.bench.harness import run_task
 from fancloud_vtk.bench.report import _num, _row, header, markdown, write_outputs
 
 _HERE = "fancloud_vtk.bench.tiles"
-MODES = ("one", "threads", "cluster")  #: one process, Dask's threads, a LocalCluster
+#: one process, Dask's threads, a LocalCluster, and out of core: write_tiled_fans from an
+#: .npy file on a LocalCluster
+MODES = ("one", "threads", "cluster", "files")
 
 
 def _peak_mb() -> float:
@@ -93,6 +95,116 @@ def child_tiles(n: int, seed: int, tiles: list, mode: str, workers: int, repeat:
     return out
 
 
+def child_save_points(n: int, seed: int, path: str) -> dict:
+    """The benchmark's points written to ``path`` (.npy), in a process of its own."""
+    import numpy as np
+
+    np.save(path, surface_points(n, seed, "bumpy"))
+    return {"path": path}
+
+
+def _noop(x):
+    return x
+
+
+def child_files(n: int, seed: int, path: str, tile_points: int, workers: int,
+                chunk: int) -> dict:
+    """Out of core: ``write_tiled_fans`` of the ``.npy`` at ``path`` on a fresh LocalCluster
+    (timed end to end: the two passes over the file, the tiles, the agreement, the files);
+    then the scheduler's cost per task (no-op tasks), and the folder read back for the
+    digest (after the memory was read)."""
+    import os
+    import shutil
+    import tempfile
+
+    from dask.distributed import Client, LocalCluster
+
+    from fancloud_vtk.distributed import read_tiles, write_tiled_fans
+
+    t0 = time.perf_counter()
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                           dashboard_address=None)
+    client = Client(cluster)
+    out = {"mode": "files", "n": n, "cluster_start": time.perf_counter() - t0}
+    folder = tempfile.mkdtemp(prefix="fancloud_tiles_")
+    try:
+        small = os.path.join(folder, "small.npy")
+        child_save_points(20_000, seed + 1, small)
+        write_tiled_fans(small, os.path.join(folder, "warm"), tiles=(2, 1, 1),
+                         scheduler=client)  # kernels loaded in every worker
+        before = _peak_mb()
+        t0 = time.perf_counter()
+        index = write_tiled_fans(path, os.path.join(folder, "out"), tile_points=tile_points,
+                                 scheduler=client, chunk=chunk)
+        out["time"] = time.perf_counter() - t0
+        out["times"] = [out["time"]]
+        out["peak_mb"] = _peak_mb()
+        out["peak_before_mb"] = before
+        out["worker_peak_mb"] = sorted(client.run(_peak_mb).values())
+        out["bytes"] = sum(os.path.getsize(os.path.join(folder, "out", f))
+                           for f in os.listdir(os.path.join(folder, "out")))
+        # the scheduler's own cost per task: 200 no-op tasks, submitted and gathered
+        t0 = time.perf_counter()
+        client.gather(client.map(_noop, range(200), pure=False))
+        out["task_overhead"] = (time.perf_counter() - t0) / 200
+        out["tiles"] = index["tiles"]
+        out["phases"] = index["timings"]
+        out["tile_list"] = [{k: t[k] for k in ("owned", "built", "ghosts", "seconds",
+                                              "worker_peak_mb", "flipped", "halo")}
+                            for t in index["tile_list"]]
+        fc = read_tiles(os.path.join(folder, "out"))
+        out["digest"] = digest(fc.offsets, fc.ring, fc.normals, fc.open, fc.rotated)
+        out["fans_open"] = int(fc.open.sum())
+    finally:
+        client.close()
+        cluster.close()
+        shutil.rmtree(folder, ignore_errors=True)
+    return out
+
+
+def extrapolate(run: dict, n_target: int, workers: list[int]) -> list[dict]:
+    """The out-of-core run's wall time extrapolated to ``n_target`` points on each number
+    of workers (the model and its assumptions: :data:`MODEL`)."""
+    import math
+
+    n = run["n"]
+    tiles = run["tile_list"]
+    m = len(tiles)
+    ph = run["phases"]
+    scan_rate = ph["scan"] / n  # seconds per point, one pass
+    sort_rate = ph["sort"] / (n * m)  # seconds per point and tile tested
+    owned = max(t["owned"] for t in tiles)
+    per_tile = max(t["seconds"] for t in tiles)  # the slowest tile, at the same tile size
+    flipped = sum(t["flipped"] for t in tiles)
+    per_flip = ph["agree"] / max(flipped, 1)
+    m_target = math.ceil(n_target / owned)  # tiles of the same size
+    out = []
+    for w in workers:
+        waves = math.ceil(m_target / w)
+        parts = {
+            "scan": scan_rate * n_target,
+            "sort": sort_rate * n_target * m_target,
+            "tiles": waves * per_tile,
+            "scheduler": m_target * run["task_overhead"],
+            "agree": math.ceil(m_target / 2 / w) * per_flip,
+        }
+        out.append({"n": n_target, "workers": w, "tiles": m_target, "parts": parts,
+                    "time": sum(parts.values()), "worker_peak_mb": max(run["worker_peak_mb"])})
+    return out
+
+
+#: the assumptions of :func:`extrapolate`, printed with its rows
+MODEL = ("extrapolated from the measured out-of-core run: the two passes over the input "
+         "(scan, and the sort into tiles, which tests every chunk against every tile) run "
+         "in the calling process and scale with the points (the sort with points x tiles); "
+         "tiles keep the measured run's size (the most points a tile owned), so a tile's "
+         "time is the slowest measured tile's and a worker's memory the measured peak; "
+         "tiles run in waves of one per worker (each worker one core, all seeing the output "
+         "folder on a disk fast enough); the scheduler costs the measured no-op task time "
+         "per tile; half the tiles flipped in the agreement (the measured time per flipped "
+         "tile); the cluster's start is left out")
+
+
 def run_tiles(args, argv: list[str]) -> dict:
     """Every size in every mode, each in a fresh process; the table."""
     t_start = time.perf_counter()
@@ -103,16 +215,40 @@ def run_tiles(args, argv: list[str]) -> dict:
                                                 "modes": args.modes}}
     runs = []
     rows = []
+    import os
+    import tempfile
+
+    files_run = None
     for n in args.sizes:
         got = {}
         for mode in args.modes:
             _log(args.quiet, f"{size_label(n)} points: {mode}")
-            got[mode] = run_task(f"{_HERE}:child_tiles", {"n": n, "seed": args.seed,
-                                                          "tiles": tiles, "mode": mode,
-                                                          "workers": args.workers,
-                                                          "repeat": args.repeat})
+            if mode == "files":
+                with tempfile.TemporaryDirectory(prefix="fancloud_bench_tiles_") as tmp:
+                    path = os.path.join(tmp, "points.npy")
+                    run_task(f"{_HERE}:child_save_points",
+                             {"n": n, "seed": args.seed, "path": path})
+                    got[mode] = run_task(f"{_HERE}:child_files", {
+                        "n": n, "seed": args.seed, "path": path,
+                        "tile_points": args.tile_points, "workers": args.workers,
+                        "chunk": 1_000_000})
+                files_run = got[mode]
+            else:
+                got[mode] = run_task(f"{_HERE}:child_tiles", {"n": n, "seed": args.seed,
+                                                              "tiles": tiles, "mode": mode,
+                                                              "workers": args.workers,
+                                                              "repeat": args.repeat})
             runs.append(got[mode])
         rows += _rows(n, args, tiles, got)
+    if files_run is not None and args.extrapolate:
+        res["extrapolation"] = extrapolate(files_run, args.extrapolate,
+                                           args.extrapolate_workers)
+        for e in res["extrapolation"]:
+            parts = ", ".join(f"{k} {v:.1f} s" for k, v in e["parts"].items())
+            rows.append(_row(f"tiles: extrapolated wall time, {size_label(e['n'])} points, "
+                             f"{e['workers']} workers", f"{e['tiles']} tiles of the "
+                             f"{size_label(files_run['n'])} run's size",
+                             f"model (see notes): {parts}", _num(e["time"]), "s"))
     res["runs"] = runs
     res["rows"] = rows
     res["elapsed"] = time.perf_counter() - t_start
@@ -120,7 +256,12 @@ def run_tiles(args, argv: list[str]) -> dict:
              "cloud first (kernels loaded, on the cluster in every worker); the cluster's "
              "start timed apart",
              "peak memory: the process's peak resident set (ru_maxrss), the points and the "
-             "result included; on the cluster also each worker's"]
+             "result included; on the cluster also each worker's",
+             "files: write_tiled_fans of an .npy file written beforehand (not timed), "
+             f"--tile-points {args.tile_points}, on a LocalCluster of --workers processes; "
+             "its fan cloud read back with read_tiles (not timed) for the digest"]
+    if "extrapolation" in res:
+        notes.append(MODEL)
     text = markdown("fancloud bench tiles: fans in tiles on Dask against one process", res,
                     rows, notes)
     md, js = write_outputs(args.out, "tiles", text, res)
@@ -136,7 +277,9 @@ def _rows(n, args, tiles, got) -> list[dict]:
     names = {"one": "one process, build_fans",
              "threads": f"tiled_fans {tiles[0]}x{tiles[1]}x{tiles[2]}, Dask threads",
              "cluster": f"tiled_fans {tiles[0]}x{tiles[1]}x{tiles[2]}, LocalCluster "
-                        f"{args.workers} workers x 1 thread"}
+                        f"{args.workers} workers x 1 thread",
+             "files": f"write_tiled_fans from .npy (out of core), LocalCluster "
+                      f"{args.workers} workers x 1 thread"}
     for mode, r in got.items():
         extra = ""
         if "rebuilt" in r:
@@ -144,6 +287,11 @@ def _rows(n, args, tiles, got) -> list[dict]:
                      f"{r['rebuilt']} tile(s) built again")
         if "cluster_start" in r:
             extra += f"; cluster start {r['cluster_start']:.1f} s (not in the time)"
+        if "phases" in r:
+            t = r["tiles"]
+            extra += (f"; {t[0]}x{t[1]}x{t[2]} tiles; " + ", ".join(
+                f"{k} {v:.1f} s" for k, v in r["phases"].items() if k != "total")
+                + f"; {r['bytes'] / 2**20:.0f} MiB written")
         rows.append(_row(f"tiles: wall time, {names[mode]}", data,
                          f"end to end, warm, best of {args.repeat}" + extra,
                          _num(r["time"]), "s"))
@@ -180,11 +328,20 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    help="numbers of points, comma-separated (default: 1M,10M)")
     p.add_argument("--tiles", default="2,2,2", help="tiles along x,y,z (default: %(default)s)")
     p.add_argument("--modes", nargs="+", choices=MODES, default=list(MODES),
-                   help="one process, Dask threads, LocalCluster (default: all)")
+                   help="one process, Dask threads, LocalCluster, out of core from a file "
+                        "(default: all)")
     p.add_argument("--workers", type=int, default=2,
                    help="LocalCluster worker processes (default: %(default)s)")
     p.add_argument("--repeat", type=int, default=1,
                    help="timed calls per mode, best kept (default: %(default)s)")
+    p.add_argument("--tile-points", type=int, default=2_000_000,
+                   help="files mode: points per tile (tiles='auto'; default: %(default)s)")
+    p.add_argument("--extrapolate", type=lambda t: 0 if t == "0" else parse_sizes(t)[0],
+                   default=100_000_000,
+                   help="files mode: extrapolate its time to this many points "
+                        "(default: 100M; 0: no extrapolation)")
+    p.add_argument("--extrapolate-workers", type=lambda t: [int(x) for x in t.split(",")],
+                   default=[2, 8, 32], help="workers of the extrapolation (default: 2,8,32)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
     p.add_argument("--out", default="bench_out", help="output folder (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
