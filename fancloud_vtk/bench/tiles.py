@@ -169,10 +169,9 @@ def extrapolate(run: dict, n_target: int, workers: list[int]) -> list[dict]:
 
     n = run["n"]
     tiles = run["tile_list"]
-    m = len(tiles)
     ph = run["phases"]
     scan_rate = ph["scan"] / n  # seconds per point, one pass
-    sort_rate = ph["sort"] / (n * m)  # seconds per point and tile tested
+    sort_rate = ph["sort"] / n  # seconds per point (re-sorts of rebuilt tiles included)
     owned = max(t["owned"] for t in tiles)
     per_tile = max(t["seconds"] for t in tiles)  # the slowest tile, at the same tile size
     flipped = sum(t["flipped"] for t in tiles)
@@ -183,7 +182,7 @@ def extrapolate(run: dict, n_target: int, workers: list[int]) -> list[dict]:
         waves = math.ceil(m_target / w)
         parts = {
             "scan": scan_rate * n_target,
-            "sort": sort_rate * n_target * m_target,
+            "sort": sort_rate * n_target,
             "tiles": waves * per_tile,
             "scheduler": m_target * run["task_overhead"],
             "agree": math.ceil(m_target / 2 / w) * per_flip,
@@ -195,8 +194,8 @@ def extrapolate(run: dict, n_target: int, workers: list[int]) -> list[dict]:
 
 #: the assumptions of :func:`extrapolate`, printed with its rows
 MODEL = ("extrapolated from the measured out-of-core run: the two passes over the input "
-         "(scan, and the sort into tiles, which tests every chunk against every tile) run "
-         "in the calling process and scale with the points (the sort with points x tiles); "
+         "(scan, and the sort into the tiles' files, re-sorts for rebuilt tiles included) "
+         "run in the calling process and scale with the points; "
          "tiles keep the measured run's size (the most points a tile owned), so a tile's "
          "time is the slowest measured tile's and a worker's memory the measured peak; "
          "tiles run in waves of one per worker (each worker one core, all seeing the output "
