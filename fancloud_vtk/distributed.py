@@ -1045,7 +1045,7 @@ def _write_tile(fc, path) -> None:
     from .algorithms.convert import fancloud_to_vtk, write_vtp
 
     tmp = f"{path}.{os.getpid()}.tmp.vtp"
-    write_vtp(fancloud_to_vtk(fc), tmp)
+    write_vtp(fancloud_to_vtk(fc), tmp, compressor="lz4")
     os.replace(tmp, path)
 
 

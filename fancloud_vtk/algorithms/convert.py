@@ -269,11 +269,16 @@ def _first_errors(catcher: _ErrorCatcher, capture) -> list[str]:
     return list(dict.fromkeys(catcher.messages + window))
 
 
-def write_vtp(polydata, path) -> None:
+def write_vtp(polydata, path, compressor: str = "zlib") -> None:
     """Write ``vtkPolyData`` to an XML ``.vtp`` file (binary, appended).
 
+    ``compressor``: ``"zlib"`` (default, at level 1: VTK's default level 5 took 3 times as
+    long for a file 3% smaller, on a 500,000-point fan cloud), ``"lz4"`` (faster still, a
+    file about 1.5 times larger; what the tiles of ``write_tiled_fans`` use) or ``"none"``.
     Raises ``OSError`` naming the path and the reason.
     """
+    if compressor not in ("zlib", "lz4", "none"):
+        raise ValueError(f"compressor must be 'zlib', 'lz4' or 'none', got {compressor!r}")
     from vtkmodules.vtkIOXML import vtkXMLPolyDataWriter
 
     path = os.fspath(path)
@@ -286,6 +291,13 @@ def write_vtp(polydata, path) -> None:
     errors = _ErrorCatcher(writer, writer.GetExecutive())
     writer.SetFileName(path)
     writer.SetInputData(polydata)
+    if compressor == "zlib":
+        writer.SetCompressorTypeToZLib()
+        writer.SetCompressionLevel(1)
+    elif compressor == "lz4":
+        writer.SetCompressorTypeToLZ4()
+    else:
+        writer.SetCompressorTypeToNone()
     with _quiet_vtk() as capture:
         ok = writer.Write()
     messages = _first_errors(errors, capture)
