@@ -25,7 +25,7 @@ from .core.vdfc import (
     terrain_fan_cloud,
     terrain_path,
 )
-from .distributed import read_tiles, tile_boxes, tiled_fans, write_tiled_fans
+from .distributed import read_tiles, tile_boxes, tiled_fans, tiled_reduce, write_tiled_fans
 from .io import DroppedArrayWarning
 
 __version__ = "0.1.0"
@@ -99,6 +99,7 @@ __all__ = [
     "read_tiles",
     "tile_boxes",
     "tiled_fans",
+    "tiled_reduce",
     "to_vtk",
     "write_tiled_fans",
 ]

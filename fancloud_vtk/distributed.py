@@ -41,7 +41,8 @@ from .core import fans as _F
 from .core.model import FanCloud
 from .core.validation import FanCloudInputError, as_points, check_point_data, check_spread
 
-__all__ = ["MARGIN", "OPEN_MARGIN", "read_tiles", "tile_boxes", "tiled_fans", "write_tiled_fans"]
+__all__ = ["MARGIN", "OPEN_MARGIN", "read_tiles", "tile_boxes", "tiled_fans", "tiled_reduce",
+           "write_tiled_fans"]
 
 #: an owned point is certified when the grown box reaches this many times its fan's
 #: radius beyond it (the radius: the farther of its farthest ring neighbour and a bound
@@ -1129,3 +1130,213 @@ def _map_tasks(dask, client, scheduler, fn, jobs, done):
             if done is not None:
                 done(count)
             yield res
+
+
+# ----------------------------------------------------------------------------- reduction
+
+
+def tiled_reduce(
+    points,
+    n_points: int | None = None,
+    keep: float | None = None,
+    *,
+    k: int = 6,
+    tiles=(2, 2, 2),
+    halo: float | None = None,
+    scheduler="threads",
+    weights=(1.0, 1.0, 50.0, 0.0),
+    method: str = "entropy",
+    max_spacing: float = 4.0,
+    error_step: float = 2.0,
+) -> FanCloud:
+    """The reduction of a point cloud in blocks, as Dask tasks (the paper's §8 blocks).
+
+    Each tile (a block) builds the fans of its points and of a halo around it and reduces
+    them (:func:`fancloud_vtk.reduce`, its removal order recorded); the block keeps the
+    prefix of that order at which its *own* points are down to their share of the target
+    (the target split over the blocks by their points, largest remainders first, so the
+    shares sum to it exactly). Its removals near its faces saw the halo, so both sides of
+    a face are reduced at the same density. The kept points keep the fans the reduction
+    re-formed for them; a fan that uses a point another block removed is built again over
+    the kept points, and the normals are oriented over the whole result (as
+    ``build_fans`` orients).
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 3)
+        The points (distinct).
+    n_points, keep
+        The target, as in :func:`fancloud_vtk.reduce`.
+    k : int, default: 6
+        Neighbours per fan.
+    tiles : tuple of 3 int, default: (2, 2, 2)
+        Blocks along x, y and z.
+    halo : float, optional
+        The blocks' halo (default: the default halo of :func:`tiled_fans`).
+    scheduler : str or dask.distributed.Client, default: "threads"
+        As in :func:`tiled_fans`.
+    weights, method, max_spacing, error_step
+        As in :func:`fancloud_vtk.reduce`.
+
+    Returns
+    -------
+    FanCloud
+        The reduced fan cloud (exactly the target's points), with the point array
+        ``original_id`` (rows of ``points``); ``info`` adds ``tiles``, ``halo``,
+        ``fans_rebuilt`` (the fans built again along the blocks' faces) and ``timings``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fancloud_vtk.distributed import tiled_reduce
+    >>> p = np.random.default_rng(0).normal(size=(40000, 3))
+    >>> p /= np.linalg.norm(p, axis=1)[:, None]
+    >>> small = tiled_reduce(p, keep=0.2, tiles=(2, 2, 1), scheduler="sync")
+    >>> small.n_points
+    8000
+    """
+    try:
+        import dask
+    except ImportError as exc:  # pragma: no cover - the test extra installs it
+        raise ImportError('tiled_reduce needs Dask: pip install "fancloud-vtk[distributed]"') \
+            from exc
+    from .core.reduction import target_count
+
+    pts = as_points(points)
+    n = len(pts)
+    k = _F._check_parameters(k, 90.0, 42, "cover")[0]
+    _F._check_size(n, k)
+    check_spread(pts)
+    target = target_count(n, n_points, keep)
+    t = _check_tiles(tiles)
+    width = _auto_halo(pts, k) if halo is None else _check_halo(halo)
+    n_dup = _F.Grid(pts).n_dup
+    if n_dup:
+        raise FanCloudInputError(f"{n_dup:,} duplicate point(s): tiled_reduce needs distinct "
+                                 "points (merge them first, e.g. with numpy.unique(points, "
+                                 "axis=0))")
+    t_all = time.perf_counter()
+    lo, hi, owner = tile_boxes(pts, t)
+    counts = np.bincount(owner, minlength=len(lo))
+    exact = counts * (target / n)
+    share = np.floor(exact).astype(np.int64)
+    extra = target - int(share.sum())
+    share[np.argsort(-(exact - share), kind="stable")[:extra]] += 1
+    options = (k, tuple(float(x) for x in weights), method, max_spacing, error_step)
+    jobs = []
+    for i in range(len(lo)):
+        own = np.flatnonzero(owner == i)
+        if not len(own):
+            continue
+        ids = _grown(pts, lo[i], hi[i], width)
+        jobs.append((pts[ids], ids, own, int(share[i]), options))
+    t0 = time.perf_counter()
+    parts = _run_blocks(dask, jobs, scheduler)
+    timings = {"blocks": time.perf_counter() - t0}
+
+    # stitch: the kept points in input order, each with its block's fan where every ring
+    # member was kept; the others built again over the kept points
+    t0 = time.perf_counter()
+    kept = np.sort(np.concatenate([part[0] for part in parts]))
+    m = len(kept)
+    where = np.full(n, -1, np.int64)
+    where[kept] = np.arange(m)
+    sizes = np.zeros(m, np.int64)
+    normals = np.zeros((m, 3))
+    is_open = np.zeros(m, bool)
+    for ids, s, _, nrm, op in parts:
+        sizes[where[ids]] = s
+        normals[where[ids]] = nrm
+        is_open[where[ids]] = op
+    offsets = np.zeros(m + 1, np.int64)
+    np.cumsum(sizes, out=offsets[1:])
+    ring = np.empty(offsets[-1], np.int64)
+    for ids, s, r, _, _ in parts:
+        dst = np.repeat(offsets[where[ids]], s) + (
+            np.arange(len(r)) - np.repeat(np.cumsum(s) - s, s))
+        ring[dst] = where[r]
+    bad = np.zeros(m, bool)
+    if len(ring):
+        owner_of_entry = np.repeat(np.arange(m), sizes)
+        bad[owner_of_entry[ring < 0]] = True
+    sub = pts[kept]
+    if bad.any():
+        fresh = _F.build_fans(sub, k, orient=False)
+        fsz = np.diff(fresh.offsets)
+        sizes[bad] = fsz[bad]
+        normals[bad] = fresh.normals[bad]
+        is_open[bad] = fresh.open[bad]
+        old_off, old_ring = offsets, ring
+        offsets = np.zeros(m + 1, np.int64)
+        np.cumsum(sizes, out=offsets[1:])
+        src_off = np.where(bad, fresh.offsets[:-1], old_off[:-1])
+        take = np.repeat(src_off, sizes) + (
+            np.arange(offsets[-1]) - np.repeat(offsets[:-1], sizes))
+        from_fresh = np.repeat(bad, sizes)
+        ring = np.where(from_fresh, fresh.ring[np.minimum(take, len(fresh.ring) - 1)],
+                        old_ring[np.minimum(take, max(len(old_ring) - 1, 0))])
+    fc = FanCloud(sub, offsets, ring, normals, is_open, np.zeros(m, bool), {}, {})
+    fc = _F._orient_fans(fc, np.zeros(m, bool))
+    fc.point_data["original_id"] = kept
+    timings["stitch"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_all
+    fc.info.update({"k": k, "tiles": tuple(int(x) for x in t), "halo": width,
+                    "fans_rebuilt": int(bad.sum()), "fans_open": int(fc.open.sum()),
+                    "timings": timings})
+    return fc
+
+
+def _block(sub, ids, own, share, options):
+    """One block's task: the block's kept own points (global ids, sorted), their fan sizes,
+    rings (global ids), normals and open flags."""
+    from .core.reduction import reduce as _reduce
+
+    k, weights, method, max_spacing, error_step = options
+    own_mask = np.zeros(len(sub), bool)
+    own_mask[np.searchsorted(ids, own)] = True
+    need = len(own) - share  # own points to remove
+    fc = _F.build_fans(sub, k)
+    if need <= 0:
+        level, prefix = fc, 0
+    else:
+        low = max(4, int(len(sub) * share / len(own) * 0.5))
+        while True:
+            _, h = _reduce(fc, n_points=low, weights=weights, method=method,
+                           max_spacing=max_spacing, error_step=error_step,
+                           return_hierarchy=True)
+            removed_own = np.cumsum(own_mask[h.order])
+            if removed_own[-1] >= need or low == 4:
+                break
+            low = max(4, low // 2)
+        prefix = int(np.searchsorted(removed_own, need) + 1)
+        level = h.level(len(sub) - prefix)
+    loc = level.point_data.get("original_id", np.arange(level.n_points))
+    mine = np.flatnonzero(own_mask[loc])
+    sizes = np.diff(level.offsets)[mine]
+    take = np.repeat(level.offsets[mine], sizes) + (
+        np.arange(sizes.sum()) - np.repeat(np.cumsum(sizes) - sizes, sizes))
+    ring = ids[loc[level.ring[take]]]
+    return ids[loc[mine]], sizes, ring, level.normals[mine], level.open[mine]
+
+
+def _run_blocks(dask, jobs, scheduler) -> list:
+    """``_block(*job)`` for every job on the scheduler (as :func:`_run_tiles`)."""
+    if isinstance(scheduler, str) and "://" in scheduler:
+        from dask.distributed import Client
+
+        with Client(scheduler) as client:
+            return _blocks_on_client(dask, client, jobs)
+    if isinstance(scheduler, str):
+        return list(dask.compute(*[dask.delayed(_block, pure=False)(*j) for j in jobs],
+                                 scheduler=scheduler))
+    if all(hasattr(scheduler, name) for name in ("compute", "gather")):
+        return _blocks_on_client(dask, scheduler, jobs)
+    raise TypeError("scheduler must be a Dask scheduler name, a scheduler address or a "
+                    f"dask.distributed.Client, got {scheduler!r}")
+
+
+def _blocks_on_client(dask, client, jobs) -> list:
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
+        futures = client.compute([dask.delayed(_block, pure=False)(*j) for j in jobs])
+    return client.gather(futures)
