@@ -613,14 +613,17 @@ def test_bench_tiles_compares_the_tiles_with_one_process(tmp_path, capsys):
     assert cli_main(["bench", "tiles", "--sizes", "30k", "--tiles", "2,2,1", "--modes", "one",
                      "threads", "files", "--workers", "1", "--tile-points", "10000",
                      "--extrapolate", "1M", "--extrapolate-workers", "2,4",
-                     "--out", str(out), "-q"]) == 0
+                     "--reduce", "20k", "--out", str(out), "-q"]) == 0
     res = json.loads((out / "tiles.json").read_text())
     by_figure = {r["figure"]: r for r in res["rows"]}
     same = by_figure["tiles: same fan cloud as one process, tiled_fans 2x2x1, Dask threads"]
     assert same["measured"] == "yes" and same["verdict"] == "yes"
     assert float(by_figure["tiles: wall time, one process, build_fans"]["measured"]) > 0
     assert "tiles: ratio tiled_fans 2x2x1, Dask threads / one process" in by_figure
-    assert {r["mode"] for r in res["runs"]} == {"one", "threads", "files"}
+    assert {r["mode"] for r in res["runs"]} == {"one", "threads", "files", "blocks"}
+    mean = by_figure["tiles: reduction mean distance, tiled_reduce 2x2x1, Dask threads / "
+                     "one process"]
+    assert float(mean["measured"]) > 0 and mean["verdict"] in ("yes", "NO")
     files = "write_tiled_fans from .npy (out of core), LocalCluster 1 workers x 1 thread"
     assert by_figure[f"tiles: same fan cloud as one process, {files}"]["measured"] == "yes"
     ext = [e for e in res["extrapolation"]]

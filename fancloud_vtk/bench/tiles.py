@@ -1,4 +1,5 @@
-"""``fancloud bench tiles``: the fans of a large cloud in tiles on Dask against one process.
+"""``fancloud bench tiles``: the fans of a large cloud in tiles on Dask against one process,
+and the reduction in blocks (``tiled_reduce``) against one process's.
 
 For each size, three fresh processes build the fans of the same random points on the
 bumpy sphere: ``build_fans`` in one process, ``tiled_fans`` on Dask's threads, and
@@ -162,6 +163,97 @@ def child_files(n: int, seed: int, path: str, tile_points: int, workers: int,
     return out
 
 
+#: the torus of the blocked reduction: radii (its exact distance is known)
+TORUS = (1.0, 0.35)
+
+
+def torus_points(n: int, seed: int = 0):
+    """``n`` points uniform by area on :data:`TORUS` (rejection sampling), and the
+    distance to it."""
+    import numpy as np
+
+    big, small = TORUS
+    rng = np.random.default_rng(seed)
+    out, got = [], 0
+    while got < n:
+        u, v = rng.random((2, 2 * n)) * 2 * np.pi
+        ok = rng.random(2 * n) * (big + small) < big + small * np.cos(v)
+        u, v = u[ok], v[ok]
+        out.append(np.c_[(big + small * np.cos(v)) * np.cos(u),
+                         (big + small * np.cos(v)) * np.sin(u), small * np.sin(v)])
+        got += len(u)
+
+    def distance(x):
+        return np.abs(np.hypot(np.hypot(x[:, 0], x[:, 1]) - big, x[:, 2]) - small)
+    return np.concatenate(out)[:n], distance
+
+
+def child_reduce(n: int, seed: int, keep: float, tiles: list, mode: str) -> dict:
+    """The reduction of ``n`` torus points to ``keep``: ``build_fans`` + ``reduce`` in one
+    process, or ``tiled_reduce`` in blocks on Dask's threads; timed end to end (warm), then
+    the result's fans' distance to the torus and the share of points kept near the blocks'
+    inner faces against elsewhere."""
+    import numpy as np
+
+    from fancloud_vtk import build_fans, reduce, tile_boxes, tiled_reduce
+    from fancloud_vtk.bench.metrics import surface_distance
+
+    pts, distance = torus_points(n, seed)
+    small_pts = torus_points(20_000, seed + 1)[0]
+    if mode == "one":
+        def run(p):
+            return reduce(build_fans(p), keep=keep)
+    else:
+        def run(p):
+            return tiled_reduce(p, keep=keep, tiles=tuple(tiles), scheduler="threads")
+    run(small_pts)  # kernels loaded
+    t0 = time.perf_counter()
+    fc = run(pts)
+    out = {"mode": mode, "n": n, "time": time.perf_counter() - t0, "kept": fc.n_points}
+    d = surface_distance(fc.points, fc.triangles(), distance, 400_000, seed)
+    out["mean"], out["max"] = d["mean"], d["max"]
+    lo, _, _ = tile_boxes(pts, tuple(tiles))
+    faces = [(a, c) for a in range(3) for c in np.unique(lo[:, a]) if c > pts[:, a].min()]
+    width = 0.03
+
+    def near(x):
+        return np.any([np.abs(x[:, a] - c) < width for a, c in faces], axis=0)
+    out["share_near"] = float(near(fc.points).sum() / near(pts).sum())
+    out["share_far"] = float((~near(fc.points)).sum() / (~near(pts)).sum())
+    out["fans_rebuilt"] = int(fc.info.get("fans_rebuilt", 0))
+    return out
+
+
+def _reduce_rows(args, tiles, one, blocks) -> list[dict]:
+    big, small = TORUS
+    data = (f"torus R = {big}, r = {small}, {size_label(args.reduce)} points uniform by area "
+            f"(seed {args.seed}); keep {args.keep}")
+    name = f"tiled_reduce {tiles[0]}x{tiles[1]}x{tiles[2]}, Dask threads"
+    rows = []
+    for label, r in (("one process, build_fans + reduce", one), (name, blocks)):
+        rows.append(_row(f"tiles: reduction wall time, {label}", data,
+                         "end to end, warm, best of 1", _num(r["time"]), "s"))
+        rows.append(_row(f"tiles: reduction, mean distance to the torus, {label}", data,
+                         "the result's fan triangles, 400,000 area samples; max "
+                         f"{r['max']:.3g}", f"{r['mean']:.4g}", ""))
+    rows.append(_row(f"tiles: reduction wall time, {name} / one process", data,
+                     "wall times above", f"{blocks['time'] / one['time']:.3f}", "x"))
+    ratio = blocks["mean"] / one["mean"]
+    rows.append(_row(f"tiles: reduction mean distance, {name} / one process", data,
+                     f"{blocks['fans_rebuilt']:,} fans built again along the blocks' faces",
+                     f"{ratio:.3f}", "x", "<= 1.05", "yes" if ratio <= 1.05 else "NO"))
+    rows.append(_row(f"tiles: reduction max distance, {name} / one process", data,
+                     "the largest of the samples and vertices",
+                     f"{blocks['max'] / one['max']:.3f}", "x"))
+    for label, r in (("one process", one), (name, blocks)):
+        seam = r["share_near"] / r["share_far"]
+        rows.append(_row(f"tiles: reduction, share kept within 0.03 of the blocks' inner faces "
+                         f"/ elsewhere, {label}", data,
+                         f"{r['share_near']:.4f} / {r['share_far']:.4f} (1: no seam)",
+                         f"{seam:.3f}", ""))
+    return rows
+
+
 def extrapolate(run: dict, n_target: int, workers: list[int]) -> list[dict]:
     """The out-of-core run's wall time extrapolated to ``n_target`` points on each number
     of workers (the model and its assumptions: :data:`MODEL`)."""
@@ -239,6 +331,15 @@ def run_tiles(args, argv: list[str]) -> dict:
                                                               "repeat": args.repeat})
             runs.append(got[mode])
         rows += _rows(n, args, tiles, got)
+    if args.reduce:
+        got = {}
+        for mode in ("one", "blocks"):
+            _log(args.quiet, f"reduction of {size_label(args.reduce)} torus points: {mode}")
+            got[mode] = run_task(f"{_HERE}:child_reduce", {
+                "n": args.reduce, "seed": args.seed, "keep": args.keep, "tiles": tiles,
+                "mode": mode})
+            runs.append(got[mode])
+        rows += _reduce_rows(args, tiles, got["one"], got["blocks"])
     if files_run is not None and args.extrapolate:
         res["extrapolation"] = extrapolate(files_run, args.extrapolate,
                                            args.extrapolate_workers)
@@ -341,6 +442,12 @@ def add_parser(sub) -> argparse.ArgumentParser:
                         "(default: 100M; 0: no extrapolation)")
     p.add_argument("--extrapolate-workers", type=lambda t: [int(x) for x in t.split(",")],
                    default=[2, 8, 32], help="workers of the extrapolation (default: 2,8,32)")
+    p.add_argument("--reduce", type=lambda t: 0 if t == "0" else parse_sizes(t)[0],
+                   default=200_000, help="the blocked reduction (tiled_reduce) against one "
+                   "process on this many torus points, in the --tiles blocks (default: 200k; "
+                   "0: not run)")
+    p.add_argument("--keep", type=float, default=0.2,
+                   help="the blocked reduction's kept fraction (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
     p.add_argument("--out", default="bench_out", help="output folder (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr")
