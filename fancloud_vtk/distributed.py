@@ -251,7 +251,7 @@ point_data
         if res is None:
             continue
         ids, s, r = res[0], res[1], res[2]
-        dst = np.repeat(offsets[ids], s) + (np.arange(len(r)) - np.repeat(np.cumsum(s) - s, s))
+        dst = _positions(offsets[ids], s)
         ring[dst] = r
     info = {"k": k, "rule": rule, "max_angle": max_angle,
             "max_replacements": max_replacements, "reach": reach,
@@ -281,36 +281,10 @@ def _tile(sub, ids, own, lo, hi, width, blo, bhi, options):
                             sheets, None, False, {}, 1, None)
     loc = np.searchsorted(ids, own)
     sizes = np.diff(fc.offsets)[loc]
-    take = np.repeat(fc.offsets[loc], sizes) + (
-        np.arange(sizes.sum()) - np.repeat(np.cumsum(sizes) - sizes, sizes))
+    take = _positions(fc.offsets[loc], sizes)
     ring = ids[fc.ring[take]]
-    # the radius each owned fan looked at, and the halo that radius needs: its farthest
-    # fan neighbour and (a bound of) its 2k-th nearest point, from its two rings; where
-    # the two rings are too few, the exact 2k-th nearest
-    p = sub[loc]
-    far, near = RingK.fan_radii(sub, fc.offsets, fc.ring, loc, min(2 * k, len(sub) - 1),
-                                2 * numba.get_num_threads())
-    few = near < 0
-    if few.any():
-        kq = min(2 * k + 1, len(sub))
-        d = cKDTree(sub).query(p[few], k=kq)[0]
-        near[few] = d[:, -1] if d.ndim == 2 else d
-    radius = np.maximum(far, near)
-    factor = np.where(fc.open[loc], OPEN_MARGIN, MARGIN)
-    need = factor * radius
-    # room: to the grown box's faces that are not the cloud's bounding box's
-    glo, ghi = lo - width, hi + width
-    room_lo = np.where(glo > blo, p - glo, np.inf)
-    room_hi = np.where(ghi < bhi, ghi - p, np.inf)
-    room = np.minimum(room_lo, room_hi).min(axis=1)
-    short = need > room
-    needed = 0.0
-    if short.any():
-        # the halo that gives the shortest point its room
-        to_lo = np.where(glo > blo, p - lo, np.inf)
-        to_hi = np.where(ghi < bhi, hi - p, np.inf)
-        inner = np.minimum(to_lo, to_hi).min(axis=1)
-        needed = float((need - inner)[short].max())
+    # the halo the owned fans need (see _halo_needed)
+    needed = _halo_needed(sub, fc, loc, lo, hi, width, blo, bhi, k)
     return (own, sizes, ring, fc.normals[loc], fc.open[loc], fc.rotated[loc], no_plane[loc],
             needed)
 
@@ -343,6 +317,13 @@ def _on_client(client, jobs) -> list:
         warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
         futures = client.compute(tasks)
     return client.gather(futures)
+
+
+def _positions(starts, sizes) -> np.ndarray:
+    """The CSR positions of runs: ``starts[i] + 0 .. sizes[i] - 1`` for every run, in order
+    (where a fan's ring entries are read from, or written to)."""
+    return np.repeat(starts, sizes) + (np.arange(int(sizes.sum()))
+                                       - np.repeat(np.cumsum(sizes) - sizes, sizes))
 
 
 def _grown(pts, lo, hi, width):
@@ -707,7 +688,7 @@ def read_tiles(outdir, *, orient: bool = True) -> FanCloud:
     np.cumsum(sizes, out=offsets[1:])
     ring = np.empty(offsets[-1], np.int64)
     for ids, s, r in parts:
-        dst = np.repeat(offsets[ids], s) + (np.arange(len(r)) - np.repeat(np.cumsum(s) - s, s))
+        dst = _positions(offsets[ids], s)
         ring[dst] = r
     p = index.get("parameters", {})
     info = {**p, "fans_open": int(is_open.sum()), "fans_rotated": int(rotated.sum()),
@@ -909,8 +890,7 @@ def _file_tile(work, i, lo, hi, width, blo, bhi, t, number, options, outdir, n):
     turned = (np.einsum("ij,ij->i", built, fc.normals) < 0).astype(np.uint8)
     # the tile's fan cloud: its own points, then the other tiles' points their fans use
     sizes = np.diff(fc.offsets)[own_loc]
-    take = np.repeat(fc.offsets[own_loc], sizes) + (
-        np.arange(sizes.sum()) - np.repeat(np.cumsum(sizes) - sizes, sizes))
+    take = _positions(fc.offsets[own_loc], sizes)
     ring_loc = fc.ring[take]
     ghosts = np.setdiff1d(ring_loc[~own_mask[ring_loc]], [])
     order = np.concatenate([own_loc, ghosts])
@@ -942,8 +922,11 @@ def _file_tile(work, i, lo, hi, width, blo, bhi, t, number, options, outdir, n):
 
 
 def _halo_needed(sub, fc, loc, lo, hi, width, blo, bhi, k) -> float:
-    """The halo width the owned fans ``loc`` need (0 when ``width`` is enough): as
-    :func:`_tile`."""
+    """The halo width the owned fans ``loc`` (rows of ``sub``, the tile's box ``lo``,
+    ``hi`` grown by ``width``) need, 0 when ``width`` is enough. The radius each fan looked
+    at: its farthest fan neighbour and (a bound of) its 2k-th nearest point, from its two
+    rings (where they are too few, the exact 2k-th nearest); the room: to the grown box's
+    faces that are not the cloud's bounding box's (``blo``, ``bhi``)."""
     if not len(loc):
         return 0.0
     p = sub[loc]
@@ -1252,8 +1235,7 @@ def tiled_reduce(
     np.cumsum(sizes, out=offsets[1:])
     ring = np.empty(offsets[-1], np.int64)
     for ids, s, r, _, _ in parts:
-        dst = np.repeat(offsets[where[ids]], s) + (
-            np.arange(len(r)) - np.repeat(np.cumsum(s) - s, s))
+        dst = _positions(offsets[where[ids]], s)
         ring[dst] = where[r]
     bad = np.zeros(m, bool)
     if len(ring):
@@ -1270,11 +1252,11 @@ def tiled_reduce(
         offsets = np.zeros(m + 1, np.int64)
         np.cumsum(sizes, out=offsets[1:])
         src_off = np.where(bad, fresh.offsets[:-1], old_off[:-1])
-        take = np.repeat(src_off, sizes) + (
-            np.arange(offsets[-1]) - np.repeat(offsets[:-1], sizes))
+        take = _positions(src_off, sizes)
         from_fresh = np.repeat(bad, sizes)
-        ring = np.where(from_fresh, fresh.ring[np.minimum(take, len(fresh.ring) - 1)],
-                        old_ring[np.minimum(take, max(len(old_ring) - 1, 0))])
+        ring = np.empty(offsets[-1], np.int64)
+        ring[from_fresh] = fresh.ring[take[from_fresh]]
+        ring[~from_fresh] = old_ring[take[~from_fresh]]
     fc = FanCloud(sub, offsets, ring, normals, is_open, np.zeros(m, bool), {}, {})
     fc = _F._orient_fans(fc, np.zeros(m, bool))
     fc.point_data["original_id"] = kept
@@ -1313,8 +1295,7 @@ def _block(sub, ids, own, share, options):
     loc = level.point_data.get("original_id", np.arange(level.n_points))
     mine = np.flatnonzero(own_mask[loc])
     sizes = np.diff(level.offsets)[mine]
-    take = np.repeat(level.offsets[mine], sizes) + (
-        np.arange(sizes.sum()) - np.repeat(np.cumsum(sizes) - sizes, sizes))
+    take = _positions(level.offsets[mine], sizes)
     ring = ids[loc[level.ring[take]]]
     return ids[loc[mine]], sizes, ring, level.normals[mine], level.open[mine]
 

@@ -47,6 +47,34 @@ def terrain_grid(side):
     return np.c_[x.ravel(), y.ravel(), 0.1 * np.sin(6 * x.ravel()) * np.cos(5 * y.ravel())]
 
 
+def kill_a_worker_while(client, call):
+    """``call()`` in a thread; the first LocalCluster worker seen busy is killed (SIGKILL)
+    while it runs; the call's result (it must finish all the same)."""
+    import os
+    import signal
+    import threading
+    import time
+
+    pids = client.run(os.getpid)
+    out = {}
+    run = threading.Thread(target=lambda: out.setdefault("result", call()))
+    run.start()
+    killed = None
+    deadline = time.monotonic() + 60
+    while killed is None and time.monotonic() < deadline and run.is_alive():
+        busy = [w for w, tasks in client.processing().items() if tasks]
+        if busy:
+            killed = pids[busy[0]]
+            os.kill(killed, signal.SIGKILL)
+        else:
+            time.sleep(0.01)
+    assert killed is not None, "no tile was running on a worker"
+    assert run.is_alive(), "the run had finished before the kill"
+    run.join(timeout=300)
+    assert not run.is_alive()
+    return out["result"]
+
+
 CLOUDS = {
     "sphere": lambda: sphere(60_000),
     "ramp_with_gap": lambda: ramp_with_gap(60_000),
@@ -179,11 +207,6 @@ def test_duplicates_nan_and_bad_scheduler_are_refused():
 def test_a_worker_killed_mid_run_leaves_the_same_fans():
     """A LocalCluster worker process killed while tiles are running: Dask runs its tiles
     again elsewhere, and the fan cloud is still build_fans'."""
-    import os
-    import signal
-    import threading
-    import time
-
     distributed = pytest.importorskip("dask.distributed")
     points = sphere(400_000, seed=7)
     one = build_fans(points)
@@ -191,25 +214,9 @@ def test_a_worker_killed_mid_run_leaves_the_same_fans():
                                   dashboard_address=None) as cluster, \
             distributed.Client(cluster) as client:
         tiled_fans(points[:20_000], tiles=(2, 1, 1), scheduler=client)  # kernels loaded
-        pids = client.run(os.getpid)
-        out = {}
-        run = threading.Thread(target=lambda: out.setdefault(
-            "fc", tiled_fans(points, tiles=(4, 2, 1), scheduler=client)))
-        run.start()
-        killed = None
-        deadline = time.monotonic() + 60
-        while killed is None and time.monotonic() < deadline and run.is_alive():
-            busy = [w for w, tasks in client.processing().items() if tasks]
-            if busy:
-                killed = pids[busy[0]]
-                os.kill(killed, signal.SIGKILL)
-            else:
-                time.sleep(0.01)
-        assert killed is not None, "no tile was running on a worker"
-        assert run.is_alive(), "the run had finished before the kill"
-        run.join(timeout=300)
-        assert not run.is_alive()
-    assert same(out["fc"], one)
+        out = kill_a_worker_while(client, lambda: tiled_fans(points, tiles=(4, 2, 1),
+                                                             scheduler=client))
+    assert same(out, one)
 
 
 # ----------------------------------------------------------------------------- out of core
@@ -379,11 +386,6 @@ def test_a_worker_killed_while_writing_tiles_leaves_a_complete_folder(tmp_path):
     """A LocalCluster worker killed while tiles run: its tiles run again elsewhere, the
     folder holds the index, the .vtpd and one file per tile, nothing half-written, and it
     reads back as build_fans' fan cloud."""
-    import os
-    import signal
-    import threading
-    import time
-
     distributed = pytest.importorskip("dask.distributed")
     points = sphere(300_000, seed=9)
     one = build_fans(points)
@@ -392,25 +394,9 @@ def test_a_worker_killed_while_writing_tiles_leaves_a_complete_folder(tmp_path):
             distributed.Client(cluster) as client:
         D.write_tiled_fans(points[:20_000], tmp_path / "warm", tiles=(2, 1, 1),
                            scheduler=client)  # kernels loaded
-        pids = client.run(os.getpid)
-        out = {}
-        run = threading.Thread(target=lambda: out.setdefault("index", D.write_tiled_fans(
-            points, tmp_path / "run", tiles=(4, 2, 1), scheduler=client)))
-        run.start()
-        killed = None
-        deadline = time.monotonic() + 60
-        while killed is None and time.monotonic() < deadline and run.is_alive():
-            busy = [w for w, tasks in client.processing().items() if tasks]
-            if busy:
-                killed = pids[busy[0]]
-                os.kill(killed, signal.SIGKILL)
-            else:
-                time.sleep(0.01)
-        assert killed is not None, "no tile was running on a worker"
-        assert run.is_alive(), "the run had finished before the kill"
-        run.join(timeout=300)
-        assert not run.is_alive()
-    files = [t["file"] for t in out["index"]["tile_list"]]
+        index = kill_a_worker_while(client, lambda: D.write_tiled_fans(
+            points, tmp_path / "run", tiles=(4, 2, 1), scheduler=client))
+    files = [t["file"] for t in index["tile_list"]]
     assert tile_folder_files(tmp_path / "run") == sorted(["index.json", "fans.vtpd", *files])
     assert same(D.read_tiles(tmp_path / "run"), one)
 
