@@ -253,6 +253,16 @@ def test_tiles_written_and_read_back_are_the_fans_of_one_process(tmp_path, name,
     dots = np.einsum("ij,ij->i", unoriented.normals, one.normals)
     assert np.abs(np.abs(dots) - 1).max() < 1e-12
     assert max((dots > 0).mean(), (dots < 0).mean()) > 0.999
+    # fans.vtpd opens in VTK as one partitioned dataset of the tiles (as ParaView opens it)
+    from vtkmodules.vtkIOXML import vtkXMLPartitionedDataSetReader
+
+    reader = vtkXMLPartitionedDataSetReader()
+    reader.SetFileName(str(tmp_path / "fans.vtpd"))
+    reader.Update()
+    parts = reader.GetOutput()
+    assert parts.GetNumberOfPartitions() == len(files)
+    assert sum(parts.GetPartition(j).GetNumberOfPoints() for j in range(len(files))) == \
+        len(points) + sum(t["ghosts"] for t in index["tile_list"])
     tile = load(tmp_path / files[0])
     ghost = tile.point_data["vtkGhostType"]
     own = index["tile_list"][0]["owned"] if index["tile_list"][0]["file"] == files[0] else None
