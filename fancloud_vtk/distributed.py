@@ -800,25 +800,12 @@ def _bucket(chunks, work, todo, lo, hi, widths, blo, bhi, t, number) -> dict:
     uniform = len(todo) == len(lo) and np.all(widths == widths[0])
     for c in chunks:
         c = np.asarray(c, np.float64)
-        clo, chi = c.min(axis=0), c.max(axis=0)
         own = _owner(c, blo, bhi, t, number)
         if uniform:  # every tile, one width: each point's few tiles, not every tile
-            for i, inside in _grown_members(c, lo, hi, float(widths[0]), t, number):
-                counts[i][0] += int(np.count_nonzero(own[inside] == i))
-                counts[i][1] += len(inside)
-                with open(os.path.join(work, f"tile_{i:05d}.xyz"), "ab") as fh:
-                    c[inside].tofile(fh)
-                with open(os.path.join(work, f"tile_{i:05d}.ids"), "ab") as fh:
-                    (inside + base).astype(np.int64).tofile(fh)
-            base += len(c)
-            continue
-        for i in todo:
-            glo, ghi = lo[i] - widths[i], hi[i] + widths[i]
-            if np.any(chi < glo) or np.any(clo > ghi):
-                continue
-            inside = np.flatnonzero(np.all((c >= glo) & (c <= ghi), axis=1))
-            if not len(inside):
-                continue
+            members = _grown_members(c, lo, hi, float(widths[0]), t, number)
+        else:
+            members = _box_members(c, todo, lo, hi, widths)
+        for i, inside in members:
             counts[i][0] += int(np.count_nonzero(own[inside] == i))
             counts[i][1] += len(inside)
             with open(os.path.join(work, f"tile_{i:05d}.xyz"), "ab") as fh:
@@ -827,6 +814,19 @@ def _bucket(chunks, work, todo, lo, hi, widths, blo, bhi, t, number) -> dict:
                 (inside + base).astype(np.int64).tofile(fh)
         base += len(c)
     return counts
+
+
+def _box_members(c, todo, lo, hi, widths):
+    """(tile, sorted row numbers of ``c`` in its grown box) for the tiles ``todo``, each
+    with its own width, by testing every tile."""
+    clo, chi = c.min(axis=0), c.max(axis=0)
+    for i in todo:
+        glo, ghi = lo[i] - widths[i], hi[i] + widths[i]
+        if np.any(chi < glo) or np.any(clo > ghi):
+            continue
+        inside = np.flatnonzero(np.all((c >= glo) & (c <= ghi), axis=1))
+        if len(inside):
+            yield i, inside
 
 
 def _grown_members(c, lo, hi, width, t, number):
