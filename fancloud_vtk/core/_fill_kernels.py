@@ -22,7 +22,7 @@ from .mesh_stats import (
     _boxes_apart,
     _longest_edge_normal,
     _pair_intersects,
-    _triangle_frames,
+    few_triangle_frames,
 )
 
 
@@ -368,7 +368,7 @@ def meets(points, tri, n_base, tol, area_tol):
     """Per row ``r >= n_base`` of ``tri``: does it intersect another row (as
     :func:`~fancloud_vtk.core.mesh_stats.self_intersecting_pairs` tests a pair;
     rows below ``n_base`` are not tested against each other)?"""
-    normal, longest, lo, hi, flat = _triangle_frames(points, tri, area_tol, tol)
+    normal, longest, lo, hi, flat = few_triangle_frames(points, tri, area_tol, tol)
     m = tri.shape[0]
     hit = np.zeros(m - n_base, np.bool_)
     for r in range(n_base, m):

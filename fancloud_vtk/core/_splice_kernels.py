@@ -22,7 +22,7 @@ from numba import njit
 
 from ._geometry_kernels import dist2, in_plane, tangent, triangle_cross
 from ._grid_kernels import AXIS_MAX, lookup
-from .mesh_stats import AREA_TOL, INTERSECTION_TOL, _pair_intersects, _triangle_frames
+from .mesh_stats import AREA_TOL, INTERSECTION_TOL, _pair_intersects, few_triangle_frames
 
 #: a new triangle's normal must be within acos(MIN_NORMAL_DOT) of p's normal
 #: (78 degrees: a cube corner's faces are 55 degrees from its normal)
@@ -534,7 +534,7 @@ def _cuts(points, R, rlen, ropen, p, q, tris, nt, b0, b1):
     if m == nt:
         return False
     local = local[:m]
-    normal, longest, _, _, flat = _triangle_frames(points, local, AREA_TOL, INTERSECTION_TOL)
+    normal, longest, _, _, flat = few_triangle_frames(points, local, AREA_TOL, INTERSECTION_TOL)
     for t in range(nt):
         if flat[t]:
             continue
@@ -750,7 +750,7 @@ def folds_onto_ring(points, R, rlen, ropen, p, tris, nt):
                 local[n, 2] = v
                 n += 1
     local = local[:n]
-    normal, longest, _, _, flat = _triangle_frames(points, local, AREA_TOL, INTERSECTION_TOL)
+    normal, longest, _, _, flat = few_triangle_frames(points, local, AREA_TOL, INTERSECTION_TOL)
     for u in range(nt + n_old, n):
         if (not flat[u] and _meets_any(points, local, normal, longest, flat, 0, nt, u)
                 and not _meets_any(points, local, normal, longest, flat, nt, nt + n_old, u)):
