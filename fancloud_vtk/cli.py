@@ -206,6 +206,7 @@ def cmd_fans_tiled(args) -> int:
     from fancloud_vtk.distributed import write_tiled_fans
 
     values = _params(args, VERB_PARAMS["fans"])
+    _check_scheduler(args)
     if os.path.exists(args.output) and not os.path.isdir(args.output):
         raise ValueError(f"with --tiles the output is a folder, and {args.output!r} is a file")
     if args.input.lower().endswith((".obj", ".ply", ".vtp", ".vtk", ".vtu", ".stl")):
@@ -248,9 +249,7 @@ def cmd_fans(args) -> int:
 
     if args.tiles is not None:
         return cmd_fans_tiled(args)
-    for option in ("scheduler", "workers"):
-        if getattr(args, option) is not None:
-            raise ValueError(f"--{option} goes with --tiles")
+    _tiles_only(args)
     _check_output(args.output, ".vtp")
     result, _, elapsed = _run_verb(
         "fans", args, _params(args, VERB_PARAMS["fans"]),
@@ -311,7 +310,89 @@ def _amount_options(verb: str) -> tuple:
     return tuple(p for p in VERB_PARAMS[verb] if p.name not in ("keep", "factor", "n_points"))
 
 
+#: what ``fancloud reduce --tiles`` passes to tiled_reduce (the others must keep their default)
+TILED_REDUCE_OPTIONS = ("k", "max_angle", "max_replacements", "rule", "rotate_sharp_edges",
+                        "reach", "separate_sheets", "weights", "method", "max_spacing",
+                        "error_step")
+
+
+def cmd_reduce_tiled(args) -> int:
+    """``fancloud reduce BIG -o OUT --keep F --tiles ...``: the reduction in blocks on Dask
+    (:func:`fancloud_vtk.distributed.tiled_reduce`, in memory), written as one fan cloud
+    (or, with ``--mesh``, its mesh made in this process)."""
+    from fancloud_vtk import fan_cloud_to_mesh
+    from fancloud_vtk.algorithms.convert import (
+        MESH_FORMATS,
+        fancloud_to_vtk,
+        mesh_to_vtk,
+        write_mesh,
+        write_vtp,
+    )
+    from fancloud_vtk.distributed import tiled_reduce
+    from fancloud_vtk.io import read_point_cloud
+
+    _check_output(args.output, MESH_FORMATS if args.mesh else ".vtp")
+    _check_scheduler(args)
+    values = _params(args, _amount_options("reduce"))
+    for p in _amount_options("reduce"):
+        if p.name not in TILED_REDUCE_OPTIONS and p.name != "mesh" \
+                and values[p.name] != p.default:
+            raise ValueError(f"--{p.name.replace('_', '-')} does not go with --tiles (the "
+                             f"blocks reduce points: {', '.join(TILED_REDUCE_OPTIONS)})")
+    if args.input.lower().endswith((".obj", ".ply", ".vtp", ".vtk", ".vtu", ".stl")):
+        warnings.warn(f"{os.path.basename(args.input)}: with --tiles only the points' "
+                      "coordinates are reduced (no faces, normals or point arrays): vertices "
+                      "that no face uses are kept", UserWarning, stacklevel=2)
+    t0 = time.perf_counter()
+    points = read_point_cloud(args.input).points
+    t_read = time.perf_counter() - t0
+    progress = _Progress("reduce in tiles", args.quiet)
+    t0 = time.perf_counter()
+    try:
+        small = tiled_reduce(points, n_points=args.n_points, keep=args.keep, tiles=args.tiles,
+                             tile_points=args.tile_points, scheduler=args.scheduler,
+                             workers=args.workers, progress=progress,
+                             **{name: values[name] for name in TILED_REDUCE_OPTIONS})
+    finally:
+        progress.close()
+    t_reduce = time.perf_counter() - t0
+    rows = [("input", f"points, {len(points):,}"),
+            ("kept", f"{small.n_points:,} ({100 * small.n_points / len(points):.1f}%)"),
+            ("weights", str(tuple(args.weights))), ("method", args.method),
+            ("tiles", "x".join(str(v) for v in small.info["tiles"])),
+            ("fans built again", f"{small.info['fans_rebuilt']:,}"),
+            ("time: read", f"{t_read:.2f} s"), ("time: reduction in tiles", f"{t_reduce:.2f} s")]
+    if args.mesh:
+        mesh = fan_cloud_to_mesh(small)
+        write_mesh(mesh_to_vtk(mesh), args.output)
+        rows += [("triangles", f"{mesh.n_triangles:,}"), ("holes", f"{mesh.stats['holes']}")]
+    else:
+        write_vtp(fancloud_to_vtk(small), args.output)
+    rows.append(("written", args.output))
+    if not args.quiet:
+        _print_rows(rows)
+    return 0
+
+
+def _check_scheduler(args) -> None:
+    """--scheduler is an address (a Dask scheduler name such as 'threads' is not one)."""
+    if args.scheduler is not None and "://" not in args.scheduler:
+        raise ValueError("--scheduler must be a Dask scheduler address such as "
+                         f"tcp://host:8786, got {args.scheduler!r}")
+
+
+def _tiles_only(args) -> None:
+    """The tile options without --tiles: a usage error."""
+    for option in ("scheduler", "workers"):
+        if getattr(args, option) is not None:
+            raise ValueError(f"--{option} goes with --tiles")
+
+
 def cmd_reduce(args) -> int:
+    if args.tiles is not None:
+        return cmd_reduce_tiled(args)
+    _tiles_only(args)
+
     def rows(fc, small):
         return [("kept", f"{small.n_points:,} ({100 * small.n_points / fc.n_points:.1f}%)"),
                 ("weights", str(tuple(args.weights))), ("method", args.method)]
@@ -541,6 +622,20 @@ def cmd_bench(args) -> int:
     return bench_main(args.bench_args)
 
 
+def _add_tile_options(p, title: str, work: str):
+    """--tiles, --tile-points, --scheduler, --workers (fans and reduce); the group."""
+    tiled = p.add_argument_group(title)
+    tiled.add_argument("--tiles", type=_parse_tiles, default=None, metavar="auto|X,Y,Z",
+                       help=f"{work} in tiles: 'auto' (about N / --tile-points tiles) or X,Y,Z")
+    tiled.add_argument("--tile-points", type=int, default=2_000_000,
+                       help="with --tiles auto: points per tile (default: %(default)s)")
+    tiled.add_argument("--scheduler", default=None, metavar="ADDR",
+                       help="a Dask scheduler address (default: a LocalCluster on this machine)")
+    tiled.add_argument("--workers", type=int, default=None,
+                       help="the LocalCluster's worker processes (default: the CPU count)")
+    return tiled
+
+
 def make_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="fancloud", description="Fan clouds: one triangle fan per point (VTK / PyVista)."
@@ -554,17 +649,9 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True,
                    help="output fan cloud (.vtp); with --tiles an output folder")
     _add_params(p, VERB_PARAMS["fans"])
-    tiled = p.add_argument_group(
-        "tiles (a cloud larger than memory: read in chunks, built in tiles on Dask, written "
-        "per tile)")
-    tiled.add_argument("--tiles", type=_parse_tiles, default=None, metavar="auto|X,Y,Z",
-                       help="build in tiles: 'auto' (about N / --tile-points tiles) or X,Y,Z")
-    tiled.add_argument("--tile-points", type=int, default=2_000_000,
-                       help="with --tiles auto: points per tile (default: %(default)s)")
-    tiled.add_argument("--scheduler", default=None, metavar="ADDR",
-                       help="a Dask scheduler address (default: a LocalCluster on this machine)")
-    tiled.add_argument("--workers", type=int, default=None,
-                       help="the LocalCluster's worker processes (default: the CPU count)")
+    tiled = _add_tile_options(
+        p, "tiles (a cloud larger than memory: read in chunks, built in tiles on Dask, "
+        "written per tile)", "build")
     tiled.add_argument("--chunk", type=int, default=1_000_000,
                        help="points read at a time (default: %(default)s)")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
@@ -593,6 +680,8 @@ def make_parser() -> argparse.ArgumentParser:
     amount.add_argument("--n", "--n-points", dest="n_points", type=int, default=None,
                         help="number of points to keep")
     _add_params(p, _amount_options("reduce"))
+    _add_tile_options(p, "tiles (the reduction in blocks with halos on Dask, in memory: "
+                      "fancloud_vtk.distributed.tiled_reduce; one output file)", "reduce")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_reduce)
 

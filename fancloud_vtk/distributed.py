@@ -1097,7 +1097,10 @@ def _map_tasks(dask, client, scheduler, fn, jobs, done):
     if client is not None:
         from dask.distributed import as_completed
 
-        futures = client.map(fn, *zip(*jobs, strict=True), pure=False)
+        with warnings.catch_warnings():  # the blocks of tiled_reduce go with their points
+            warnings.filterwarnings("ignore", message="Sending large graph",
+                                    category=UserWarning)
+            futures = client.map(fn, *zip(*jobs, strict=True), pure=False)
         for j, fut in enumerate(as_completed(futures), 1):
             res = fut.result()
             if done is not None:
@@ -1127,10 +1130,19 @@ def tiled_reduce(
     tiles=(2, 2, 2),
     halo: float | None = None,
     scheduler="threads",
+    workers: int | None = None,
+    tile_points: int = 2_000_000,
     weights=(1.0, 1.0, 50.0, 0.0),
     method: str = "entropy",
     max_spacing: float = 4.0,
     error_step: float = 2.0,
+    max_angle: float = 90.0,
+    max_replacements: int = 42,
+    rule: str = "cover",
+    rotate_sharp_edges: bool = True,
+    reach: float = 5.0,
+    separate_sheets: bool = False,
+    progress=None,
 ) -> FanCloud:
     """The reduction of a point cloud in blocks, as Dask tasks (the paper's §8 blocks).
 
@@ -1152,14 +1164,26 @@ def tiled_reduce(
         The target, as in :func:`fancloud_vtk.reduce`.
     k : int, default: 6
         Neighbours per fan.
-    tiles : tuple of 3 int, default: (2, 2, 2)
-        Blocks along x, y and z.
+    tiles : "auto" or tuple of 3 int, default: (2, 2, 2)
+        Blocks along x, y and z; ``"auto"``: about ``n / tile_points`` blocks, each cut
+        across the longest side (as :func:`write_tiled_fans`).
     halo : float, optional
         The blocks' halo (default: the default halo of :func:`tiled_fans`).
-    scheduler : str or dask.distributed.Client, default: "threads"
-        As in :func:`tiled_fans`.
+    scheduler : None, str or dask.distributed.Client, default: "threads"
+        As in :func:`tiled_fans`; ``None``: a ``LocalCluster`` of ``workers``
+        single-threaded worker processes (as :func:`write_tiled_fans`), closed at the end.
+    workers : int, optional
+        With ``scheduler=None``: the worker processes (default: the CPU count).
+    tile_points : int, default: 2_000_000
+        With ``tiles="auto"``: the points a block should own at most, on average.
     weights, method, max_spacing, error_step
         As in :func:`fancloud_vtk.reduce`.
+    max_angle, max_replacements, rule, rotate_sharp_edges, reach, separate_sheets
+        The fans' parameters, as in :func:`fancloud_vtk.build_fans` (the blocks' fans and
+        the fans built again along their faces).
+    progress : callable, optional
+        ``progress(fraction, message)`` after each block (``fancloud reduce --tiles``
+        draws its bar from it).
 
     Returns
     -------
@@ -1191,7 +1215,23 @@ def tiled_reduce(
     _F._check_size(n, k)
     check_spread(pts)
     target = target_count(n, n_points, keep)
-    t = _check_tiles(tiles)
+    if isinstance(tile_points, bool) or not isinstance(tile_points, int | np.integer) \
+            or tile_points < 1000:
+        raise FanCloudInputError(f"tile_points must be an integer of at least 1000, got "
+                                 f"{tile_points!r}")
+    if isinstance(tiles, str) and tiles == "auto":
+        t = _auto_tiles(n, pts.min(axis=0), pts.max(axis=0), int(tile_points))
+    else:
+        t = _check_tiles(tiles)
+    fan_options = {"max_angle": max_angle, "max_replacements": max_replacements, "rule": rule,
+                   "rotate_sharp_edges": rotate_sharp_edges, "reach": reach,
+                   "separate_sheets": separate_sheets}
+    _F._check_parameters(k, max_angle, max_replacements, rule)
+    _F._check_reach(reach)
+    for name, flag in (("separate_sheets", separate_sheets),
+                       ("rotate_sharp_edges", rotate_sharp_edges)):
+        if not isinstance(flag, bool | np.bool_):
+            raise TypeError(f"{name} must be True or False, got {flag!r}")
     width = _auto_halo(pts, k) if halo is None else _check_halo(halo)
     n_dup = _F.Grid(pts).n_dup
     if n_dup:
@@ -1205,7 +1245,8 @@ def tiled_reduce(
     share = np.floor(exact).astype(np.int64)
     extra = target - int(share.sum())
     share[np.argsort(-(exact - share), kind="stable")[:extra]] += 1
-    options = (k, tuple(float(x) for x in weights), method, max_spacing, error_step)
+    options = (k, tuple(float(x) for x in weights), method, max_spacing, error_step,
+               fan_options)
     jobs = []
     for i in range(len(lo)):
         own = np.flatnonzero(owner == i)
@@ -1213,9 +1254,19 @@ def tiled_reduce(
             continue
         ids = _grown(pts, lo[i], hi[i], width)
         jobs.append((pts[ids], ids, own, int(share[i]), options))
+    report = progress if progress is not None else (lambda f, m: None)
+    report(0.0, f"reduce {len(jobs)} block(s)")
     t0 = time.perf_counter()
-    parts = _run_blocks(dask, jobs, scheduler)
+    client, close = _client_for(scheduler, workers)
+    try:
+        parts = list(_map_tasks(dask, client, scheduler, _block, jobs,
+                                lambda j: report(0.9 * j / len(jobs),
+                                                 f"{j} of {len(jobs)} block(s) reduced")))
+    finally:
+        if close is not None:
+            close()
     timings = {"blocks": time.perf_counter() - t0}
+    report(0.9, "stitch the blocks")
 
     # stitch: the kept points in input order, each with its block's fan where every ring
     # member was kept; the others built again over the kept points
@@ -1243,7 +1294,7 @@ def tiled_reduce(
         bad[owner_of_entry[ring < 0]] = True
     sub = pts[kept]
     if bad.any():
-        fresh = _F.build_fans(sub, k, orient=False)
+        fresh = _F.build_fans(sub, k, orient=False, **fan_options)
         fsz = np.diff(fresh.offsets)
         sizes[bad] = fsz[bad]
         normals[bad] = fresh.normals[bad]
@@ -1265,6 +1316,7 @@ def tiled_reduce(
     fc.info.update({"k": k, "tiles": tuple(int(x) for x in t), "halo": width,
                     "fans_rebuilt": int(bad.sum()), "fans_open": int(fc.open.sum()),
                     "timings": timings})
+    report(1.0, "done")
     return fc
 
 
@@ -1273,11 +1325,11 @@ def _block(sub, ids, own, share, options):
     rings (global ids), normals and open flags."""
     from .core.reduction import reduce as _reduce
 
-    k, weights, method, max_spacing, error_step = options
+    k, weights, method, max_spacing, error_step, fan_options = options
     own_mask = np.zeros(len(sub), bool)
     own_mask[np.searchsorted(ids, own)] = True
     need = len(own) - share  # own points to remove
-    fc = _F.build_fans(sub, k)
+    fc = _F.build_fans(sub, k, **fan_options)
     if need <= 0:
         level, prefix = fc, 0
     else:
@@ -1300,24 +1352,3 @@ def _block(sub, ids, own, share, options):
     return ids[loc[mine]], sizes, ring, level.normals[mine], level.open[mine]
 
 
-def _run_blocks(dask, jobs, scheduler) -> list:
-    """``_block(*job)`` for every job on the scheduler (as :func:`_run_tiles`)."""
-    if isinstance(scheduler, str) and "://" in scheduler:
-        from dask.distributed import Client
-
-        with Client(scheduler) as client:
-            return _blocks_on_client(dask, client, jobs)
-    if isinstance(scheduler, str):
-        return list(dask.compute(*[dask.delayed(_block, pure=False)(*j) for j in jobs],
-                                 scheduler=scheduler))
-    if all(hasattr(scheduler, name) for name in ("compute", "gather")):
-        return _blocks_on_client(dask, scheduler, jobs)
-    raise TypeError("scheduler must be a Dask scheduler name, a scheduler address or a "
-                    f"dask.distributed.Client, got {scheduler!r}")
-
-
-def _blocks_on_client(dask, client, jobs) -> list:
-    with warnings.catch_warnings():
-        warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
-        futures = client.compute([dask.delayed(_block, pure=False)(*j) for j in jobs])
-    return client.gather(futures)

@@ -487,3 +487,44 @@ def test_blocked_reduction_refuses_bad_input():
         tiled_reduce(points, keep=0.5, scheduler=42)
     one = tiled_reduce(points, n_points=1_000, tiles=(1, 1, 1), scheduler="sync")
     assert one.n_points == 1_000
+
+
+def test_the_reduce_command_in_tiles_on_a_scheduler_address(tmp_path, capsys):
+    """``fancloud reduce BIG.npy -o OUT --keep 0.2 --tiles ... --scheduler ADDR``: the blocks
+    of tiled_reduce on a cluster given by its address, the same points as on Dask's
+    synchronous scheduler; ``--mesh`` writes the mesh of the result; options the blocks do
+    not take, and --scheduler without --tiles or not an address, are usage errors."""
+    distributed = pytest.importorskip("dask.distributed")
+    from fancloud_vtk.algorithms.convert import fancloud_from_vtk, read_vtp
+    from fancloud_vtk.cli import main
+    from fancloud_vtk.io import read_point_cloud
+
+    points, _ = torus(12_000, seed=3)
+    np.save(tmp_path / "big.npy", points)
+    ref = tiled_reduce(points, keep=0.2, tiles=(2, 1, 1), scheduler="sync")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        out = tmp_path / "small.vtp"
+        assert main(["reduce", str(tmp_path / "big.npy"), "-o", str(out), "--keep", "0.2",
+                     "--tiles", "2,1,1", "--scheduler", cluster.scheduler_address]) == 0
+        text = capsys.readouterr().out
+        assert "2,400 (20.0%)" in text and "2x1x1" in text
+        fc = fancloud_from_vtk(read_vtp(str(out)))
+        np.testing.assert_array_equal(fc.point_data["original_id"],
+                                      ref.point_data["original_id"])
+        np.testing.assert_array_equal(fc.ring, ref.ring)
+        mesh = tmp_path / "small.ply"
+        assert main(["reduce", str(tmp_path / "big.npy"), "-o", str(mesh), "--keep", "0.2",
+                     "--tiles", "2,1,1", "--mesh", "-q",
+                     "--scheduler", cluster.scheduler_address]) == 0
+        cloud = read_point_cloud(mesh)
+        assert len(cloud.points) == 2_400 and len(cloud.faces) > 4_000
+    for extra, message in [(["--tiles", "2,1,1", "--removal", "reform"],
+                            "--removal does not go with --tiles"),
+                           (["--tiles", "2,1,1", "--scheduler", "threads"],
+                            "--scheduler must be a Dask scheduler address"),
+                           (["--workers", "2"], "--workers goes with --tiles")]:
+        assert main(["reduce", str(tmp_path / "big.npy"), "-o", str(tmp_path / "x.vtp"),
+                     "--keep", "0.2", *extra]) == 2
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "x.vtp").exists()
