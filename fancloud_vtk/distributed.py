@@ -174,13 +174,9 @@ point_data
     except ImportError as exc:  # pragma: no cover - the test extra installs it
         raise ImportError('tiled_fans needs Dask: pip install "fancloud-vtk[distributed]"') \
             from exc
-    k, max_angle, max_replacements, rule_id = _F._check_parameters(
-        k, max_angle, max_replacements, rule)
-    reach = _F._check_reach(reach)
-    for name, flag in (("separate_sheets", separate_sheets), ("orient", orient),
-                       ("rotate_sharp_edges", rotate_sharp_edges)):
-        if not isinstance(flag, bool | np.bool_):
-            raise TypeError(f"{name} must be True or False, got {flag!r}")
+    k, max_angle, max_replacements, rule_id, reach = _check_fan_options(
+        k, max_angle, max_replacements, rule, reach, separate_sheets=separate_sheets,
+        orient=orient, rotate_sharp_edges=rotate_sharp_edges)
     pts = as_points(points)
     n = len(pts)
     pdata = check_point_data(point_data, n)
@@ -343,6 +339,26 @@ def _auto_halo(pts, k) -> float:
     return float(3.0 * MARGIN * np.median(d) * np.sqrt(m / n))
 
 
+def _check_fan_options(k, max_angle, max_replacements, rule, reach, **flags):
+    """The fans' parameters checked as build_fans checks them: (k, max_angle,
+    max_replacements, rule_id, reach); ``flags``: named booleans."""
+    k, max_angle, max_replacements, rule_id = _F._check_parameters(
+        k, max_angle, max_replacements, rule)
+    reach = _F._check_reach(reach)
+    for name, flag in flags.items():
+        if not isinstance(flag, bool | np.bool_):
+            raise TypeError(f"{name} must be True or False, got {flag!r}")
+    return k, max_angle, max_replacements, rule_id, reach
+
+
+def _check_tile_points(tile_points) -> int:
+    if isinstance(tile_points, bool) or not isinstance(tile_points, int | np.integer) \
+            or tile_points < 1000:
+        raise FanCloudInputError(f"tile_points must be an integer of at least 1000, got "
+                                 f"{tile_points!r}")
+    return int(tile_points)
+
+
 def _check_tiles(tiles) -> np.ndarray:
     t = np.asarray(tiles)
     if t.shape != (3,) or t.dtype.kind not in "iu" or (t < 1).any():
@@ -495,17 +511,10 @@ def write_tiled_fans(
     except ImportError as exc:  # pragma: no cover - the test extra installs it
         raise ImportError('write_tiled_fans needs Dask: pip install '
                           '"fancloud-vtk[distributed]"') from exc
-    k, max_angle, max_replacements, rule_id = _F._check_parameters(
-        k, max_angle, max_replacements, rule)
-    reach = _F._check_reach(reach)
-    for name, flag in (("separate_sheets", separate_sheets),
-                       ("rotate_sharp_edges", rotate_sharp_edges)):
-        if not isinstance(flag, bool | np.bool_):
-            raise TypeError(f"{name} must be True or False, got {flag!r}")
-    if isinstance(tile_points, bool) or not isinstance(tile_points, int | np.integer) \
-            or tile_points < 1000:
-        raise FanCloudInputError(f"tile_points must be an integer of at least 1000, got "
-                                 f"{tile_points!r}")
+    k, max_angle, max_replacements, rule_id, reach = _check_fan_options(
+        k, max_angle, max_replacements, rule, reach, separate_sheets=separate_sheets,
+        rotate_sharp_edges=rotate_sharp_edges)
+    tile_points = _check_tile_points(tile_points)
     if not (isinstance(tiles, str) and tiles == "auto"):
         _check_tiles(tiles)
     start_halo = None if halo is None else _check_halo(halo)
@@ -1209,29 +1218,22 @@ def tiled_reduce(
             from exc
     from .core.reduction import target_count
 
-    pts = as_points(points)
-    n = len(pts)
-    k = _F._check_parameters(k, 90.0, 42, "cover")[0]
-    _F._check_size(n, k)
-    check_spread(pts)
-    target = target_count(n, n_points, keep)
-    if isinstance(tile_points, bool) or not isinstance(tile_points, int | np.integer) \
-            or tile_points < 1000:
-        raise FanCloudInputError(f"tile_points must be an integer of at least 1000, got "
-                                 f"{tile_points!r}")
-    if isinstance(tiles, str) and tiles == "auto":
-        t = _auto_tiles(n, pts.min(axis=0), pts.max(axis=0), int(tile_points))
-    else:
-        t = _check_tiles(tiles)
+    k = _check_fan_options(k, max_angle, max_replacements, rule, reach,
+                           separate_sheets=separate_sheets,
+                           rotate_sharp_edges=rotate_sharp_edges)[0]
     fan_options = {"max_angle": max_angle, "max_replacements": max_replacements, "rule": rule,
                    "rotate_sharp_edges": rotate_sharp_edges, "reach": reach,
                    "separate_sheets": separate_sheets}
-    _F._check_parameters(k, max_angle, max_replacements, rule)
-    _F._check_reach(reach)
-    for name, flag in (("separate_sheets", separate_sheets),
-                       ("rotate_sharp_edges", rotate_sharp_edges)):
-        if not isinstance(flag, bool | np.bool_):
-            raise TypeError(f"{name} must be True or False, got {flag!r}")
+    tile_points = _check_tile_points(tile_points)
+    pts = as_points(points)
+    n = len(pts)
+    _F._check_size(n, k)
+    check_spread(pts)
+    target = target_count(n, n_points, keep)
+    if isinstance(tiles, str) and tiles == "auto":
+        t = _auto_tiles(n, pts.min(axis=0), pts.max(axis=0), tile_points)
+    else:
+        t = _check_tiles(tiles)
     width = _auto_halo(pts, k) if halo is None else _check_halo(halo)
     n_dup = _F.Grid(pts).n_dup
     if n_dup:

@@ -616,6 +616,14 @@ def _longest_edge_normal(points, tri, t):
 
 
 @njit(cache=True)
+def _frame_arrays(m):
+    """The arrays of :func:`_triangle_frames` for m triangles (normal, longest, lo, hi,
+    flat)."""
+    return (np.zeros((m, 3)), np.zeros(m), np.empty((m, 3)), np.empty((m, 3)),
+            np.zeros(m, dtype=np.bool_))
+
+
+@njit(cache=True)
 def _frame_of(points, tri, area_tol, tol, t, normal, longest, lo, hi, flat):
     """Row t of :func:`_triangle_frames`, written into its arrays."""
     best, nx, ny, nz, nn = _longest_edge_normal(points, tri, t)
@@ -648,13 +656,8 @@ def _triangle_frames(points, tri, area_tol, tol):
     kernel's parallel loop is a nested one, which costs far more than the work
     (it made the reduction of the cow's mesh take 23 s on two threads, 0.17 s on one).
     """
-    m = tri.shape[0]
-    normal = np.zeros((m, 3))
-    longest = np.zeros(m)
-    lo = np.empty((m, 3))
-    hi = np.empty((m, 3))
-    flat = np.zeros(m, dtype=np.bool_)
-    for t in prange(m):
+    normal, longest, lo, hi, flat = _frame_arrays(tri.shape[0])
+    for t in prange(tri.shape[0]):
         _frame_of(points, tri, area_tol, tol, t, normal, longest, lo, hi, flat)
     return normal, longest, lo, hi, flat
 
@@ -663,13 +666,8 @@ def _triangle_frames(points, tri, area_tol, tol):
 def few_triangle_frames(points, tri, area_tol, tol):
     """:func:`_triangle_frames` on the calling thread (a few triangles, inside other
     kernels); the same arrays."""
-    m = tri.shape[0]
-    normal = np.zeros((m, 3))
-    longest = np.zeros(m)
-    lo = np.empty((m, 3))
-    hi = np.empty((m, 3))
-    flat = np.zeros(m, dtype=np.bool_)
-    for t in range(m):
+    normal, longest, lo, hi, flat = _frame_arrays(tri.shape[0])
+    for t in range(tri.shape[0]):
         _frame_of(points, tri, area_tol, tol, t, normal, longest, lo, hi, flat)
     return normal, longest, lo, hi, flat
 
