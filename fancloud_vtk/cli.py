@@ -320,7 +320,7 @@ def cmd_reduce_tiled(args) -> int:
     """``fancloud reduce BIG -o OUT --keep F --tiles ...``: the reduction in blocks on Dask
     (:func:`fancloud_vtk.distributed.tiled_reduce`, in memory), written as one fan cloud
     (or, with ``--mesh``, its mesh made in this process)."""
-    from fancloud_vtk import fan_cloud_to_mesh
+    from fancloud_vtk import DuplicatePointsWarning, fan_cloud_to_mesh
     from fancloud_vtk.algorithms.convert import (
         MESH_FORMATS,
         fancloud_to_vtk,
@@ -346,15 +346,23 @@ def cmd_reduce_tiled(args) -> int:
     t0 = time.perf_counter()
     points = read_point_cloud(args.input).points
     t_read = time.perf_counter() - t0
+    # duplicates merged as build_fans merges them (the first of each kept), which
+    # tiled_reduce leaves to its caller; original_id then maps to the file's rows
+    first = np.sort(np.unique(points, axis=0, return_index=True)[1])
+    if len(first) < len(points):
+        warnings.warn(f"{len(points) - len(first)} duplicate point(s) merged: the first of "
+                      "each set of identical points is kept; the 'original_id' point array "
+                      "maps the result to the input", DuplicatePointsWarning, stacklevel=2)
     progress = _Progress("reduce in tiles", args.quiet)
     t0 = time.perf_counter()
     try:
-        small = tiled_reduce(points, n_points=args.n_points, keep=args.keep, tiles=args.tiles,
-                             tile_points=args.tile_points, scheduler=args.scheduler,
-                             workers=args.workers, progress=progress,
+        small = tiled_reduce(points[first], n_points=args.n_points, keep=args.keep,
+                             tiles=args.tiles, tile_points=args.tile_points,
+                             scheduler=args.scheduler, workers=args.workers, progress=progress,
                              **{name: values[name] for name in TILED_REDUCE_OPTIONS})
     finally:
         progress.close()
+    small.point_data["original_id"] = first[small.point_data["original_id"]]
     t_reduce = time.perf_counter() - t0
     rows = [("input", f"points, {len(points):,}"),
             ("kept", f"{small.n_points:,} ({100 * small.n_points / len(points):.1f}%)"),

@@ -1,6 +1,8 @@
 """Fans in tiles with halos (fancloud_vtk.distributed): the fan cloud of one process, bit for
 bit, on every scheduler; the halo grows where a fan needs it."""
 
+import warnings
+
 import numpy as np
 import pytest
 from conftest import fingerprint
@@ -495,28 +497,35 @@ def test_the_reduce_command_in_tiles_on_a_scheduler_address(tmp_path, capsys):
     synchronous scheduler; ``--mesh`` writes the mesh of the result; options the blocks do
     not take, and --scheduler without --tiles or not an address, are usage errors."""
     distributed = pytest.importorskip("dask.distributed")
+    from fancloud_vtk import DuplicatePointsWarning
     from fancloud_vtk.algorithms.convert import fancloud_from_vtk, read_vtp
     from fancloud_vtk.cli import main
     from fancloud_vtk.io import read_point_cloud
 
     points, _ = torus(12_000, seed=3)
-    np.save(tmp_path / "big.npy", points)
+    # three duplicates: merged with a warning (the first of each kept), as build_fans does
+    np.save(tmp_path / "big.npy", np.concatenate([points, points[[5, 9, 5]]]))
     ref = tiled_reduce(points, keep=0.2, tiles=(2, 1, 1), scheduler="sync")
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                                   dashboard_address=None) as cluster:
         out = tmp_path / "small.vtp"
-        assert main(["reduce", str(tmp_path / "big.npy"), "-o", str(out), "--keep", "0.2",
-                     "--tiles", "2,1,1", "--scheduler", cluster.scheduler_address]) == 0
-        text = capsys.readouterr().out
-        assert "2,400 (20.0%)" in text and "2x1x1" in text
+        with warnings.catch_warnings():  # the command prints them, one line each
+            warnings.simplefilter("default", DuplicatePointsWarning)
+            assert main(["reduce", str(tmp_path / "big.npy"), "-o", str(out), "--keep", "0.2",
+                         "--tiles", "2,1,1", "--scheduler", cluster.scheduler_address]) == 0
+        captured = capsys.readouterr()
+        assert "2,400 (20.0%)" in captured.out and "2x1x1" in captured.out
+        assert captured.err.startswith("fancloud reduce: warning: 3 duplicate point(s) merged")
         fc = fancloud_from_vtk(read_vtp(str(out)))
         np.testing.assert_array_equal(fc.point_data["original_id"],
                                       ref.point_data["original_id"])
         np.testing.assert_array_equal(fc.ring, ref.ring)
         mesh = tmp_path / "small.ply"
-        assert main(["reduce", str(tmp_path / "big.npy"), "-o", str(mesh), "--keep", "0.2",
-                     "--tiles", "2,1,1", "--mesh", "-q",
-                     "--scheduler", cluster.scheduler_address]) == 0
+        with warnings.catch_warnings():
+            warnings.simplefilter("default", DuplicatePointsWarning)
+            assert main(["reduce", str(tmp_path / "big.npy"), "-o", str(mesh), "--keep", "0.2",
+                         "--tiles", "2,1,1", "--mesh", "-q",
+                         "--scheduler", cluster.scheduler_address]) == 0
         cloud = read_point_cloud(mesh)
         assert len(cloud.points) == 2_400 and len(cloud.faces) > 4_000
     for extra, message in [(["--tiles", "2,1,1", "--removal", "reform"],
