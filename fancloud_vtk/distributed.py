@@ -125,8 +125,9 @@ def tiled_fans(
     Parameters
     ----------
     points : array_like, shape (n, 3)
-        The points (finite, distinct: duplicate points are refused here, while
-        ``build_fans`` merges them).
+        The points (finite). Duplicate points are merged as ``build_fans`` merges them
+        (the first of each set kept, a ``DuplicatePointsWarning``, the point array
+        ``original_id``).
     k : int, default: 6
         Neighbours per fan, as in ``build_fans``.
     tiles : tuple of 3 int, default: (2, 2, 2)
@@ -155,7 +156,7 @@ point_data
     ImportError
         Dask is not installed.
     FanCloudInputError
-        Bad points (as ``build_fans``), duplicate points or bad ``tiles`` / ``halo``.
+        Bad points (as ``build_fans``) or bad ``tiles`` / ``halo``.
 
     Examples
     --------
@@ -184,12 +185,21 @@ point_data
     check_spread(pts)
     t_all = time.perf_counter()
     grid = _F.Grid(pts)  # the spatial order of the orientation, and the duplicates
-    n_dup = grid.n_dup
-    if n_dup:
-        raise FanCloudInputError(
-            f"{n_dup:,} duplicate point(s): tiled_fans needs "
-            "distinct points (build_fans merges them; merge them first, e.g. with "
-            "numpy.unique(points, axis=0))")
+    if grid.n_dup:  # merged as build_fans merges them: the first of each kept
+        _, first = np.unique(pts, axis=0, return_index=True)
+        keep = np.sort(first)
+        warnings.warn(
+            f"{n - len(keep)} duplicate point(s) merged: the first of each set of identical "
+            "points is kept; the 'original_id' point array maps the result to the input",
+            _F.DuplicatePointsWarning, stacklevel=2)
+        sub = {name: arr[keep] for name, arr in pdata.items()}
+        sub["original_id"] = keep.astype(np.int64)
+        fc = tiled_fans(pts[keep], k, tiles=tiles, halo=halo, scheduler=scheduler,
+                        max_angle=max_angle, max_replacements=max_replacements, rule=rule,
+                        rotate_sharp_edges=rotate_sharp_edges, reach=reach,
+                        separate_sheets=separate_sheets, orient=orient, point_data=sub)
+        fc.info["duplicates_merged"] = n - len(keep)
+        return fc
     lo, hi, owner = tile_boxes(pts, tiles)
     blo, bhi = pts.min(axis=0), pts.max(axis=0)
     start = _auto_halo(pts, k) if halo is None else _check_halo(halo)

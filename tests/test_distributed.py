@@ -192,10 +192,25 @@ def test_bad_halo_is_refused(halo, error):
         tiled_fans(sphere(1000), halo=halo)
 
 
-def test_duplicates_nan_and_bad_scheduler_are_refused():
+def test_duplicates_are_merged_as_build_fans_merges_them():
+    """Duplicates: merged (the first of each kept) with build_fans' warning; the same fan
+    cloud as build_fans, with its original_id and passthrough arrays."""
+    from fancloud_vtk import DuplicatePointsWarning
+
+    points = sphere(3000, seed=4)
+    dup = np.vstack([points, points[[3, 8, 8]]])
+    value = {"value": np.arange(len(dup), dtype=np.float64)}
+    with pytest.warns(DuplicatePointsWarning, match="3 duplicate point"):
+        one = build_fans(dup, point_data=value)
+    with pytest.warns(DuplicatePointsWarning, match="3 duplicate point"):
+        fc = tiled_fans(dup, tiles=(2, 2, 1), point_data=value)
+    assert same(fc, one) and fc.info["duplicates_merged"] == 3
+    for name in ("original_id", "value"):
+        np.testing.assert_array_equal(fc.point_data[name], one.point_data[name])
+
+
+def test_nan_and_bad_scheduler_are_refused():
     points = sphere(1000)
-    with pytest.raises(FanCloudInputError, match="duplicate"):
-        tiled_fans(np.vstack([points, points[:3]]))
     bad = points.copy()
     bad[5, 1] = np.nan
     with pytest.raises(FanCloudInputError):
