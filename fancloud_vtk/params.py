@@ -154,8 +154,8 @@ FAN_PARAMS: tuple[Param, ...] = (
         "sampling-aware limit (an addition to the paper): a candidate farther than reach "
         "times the point's local spacing (the distance of its k-th nearest neighbour, "
         "corrected for the angle the k nearest cover; the larger of the two points' "
-        "spacings for a fan still open) never enters a fan, which stays open: gaps in the "
-        "sampling and stray clusters are not bridged; 0: off",
+        "spacings for a fan still open) never enters a fan, which stays open (its k "
+        "nearest always do): gaps in the sampling and stray clusters are not bridged; 0: off",
         range=(0.0, 1e6),
     ),
     Param(

@@ -792,6 +792,9 @@ def fans_from_grid(points, lo, h, start, cell_xyz, table, c_lo, c_hi, k, cap, ma
                     m_lim = 0
                     for a in range(m_cert):
                         m_lim += dist[a] <= lim2
+                    # the k nearest always count, as in reach_limit: a fan of fewer
+                    # candidates has no plane (with a small reach this happened)
+                    m_lim = max(m_lim, k)
                     # every point within the limit is certified: the pool is complete
                     final = m_lim >= cap or r * r >= lim2
                 m_pool = min(cap, m_lim)

@@ -100,7 +100,8 @@ def build_fans(
     reach : float, default: 5.0
         Sampling-aware limit, an addition to the paper: a candidate farther
         from the point than ``reach`` times its local spacing never enters
-        its fan, which stays open instead. The local spacing is the distance
+        its fan, which stays open instead (its ``k`` nearest always enter:
+        below about 4.5 they may lie beyond). The local spacing is the distance
         of the ``k``-th nearest neighbour, times the square root of the part
         of the circle that the ``k`` nearest cover (up to 3/4), so that a
         point on a boundary gets about the spacing of the points inside. A
@@ -334,7 +335,7 @@ def _gap_directed_retry(sp, tree, k, width, max_gap, rotate, n_normal, reach, sh
         pools = _sorted_unique_rows(sp, np.concatenate(parts, axis=1), p)
         cand = pools
         if reach > 0.0:
-            cand = _within_reach(sp, idx, pools, spacing, reach)
+            cand = _within_reach(sp, idx, pools, spacing, reach, k)
         K.fans_from_pool(sp, idx, cand, k, max_gap, K.RULE_COVER, rotate, n_normal, 0.0, sheets,
                          ring_tab, counts, status, normals, spacing, no_plane)
         still = status[idx] == K.STATUS_OPEN
@@ -344,12 +345,15 @@ def _gap_directed_retry(sp, tree, k, width, max_gap, rotate, n_normal, reach, sh
         pools = pools[still]
 
 
-def _within_reach(sp, idx, pools, spacing, reach):
-    """The pools with the candidates beyond reach times the larger spacing set to -1
-    (moved last, the order kept)."""
+def _within_reach(sp, idx, pools, spacing, reach, k):
+    """The pools (in order of distance) with the candidates beyond reach times the larger
+    spacing set to -1 (moved last, the order kept); the k nearest other points always stay,
+    as in :func:`~._fan_kernels.reach_limit` (a fan of fewer has no plane)."""
     q = np.maximum(pools, 0)
     d = np.linalg.norm(sp[q] - sp[idx][:, None, :], axis=2)
-    ok = (pools >= 0) & (d <= reach * np.maximum(spacing[idx][:, None], spacing[q]))
+    other = (pools >= 0) & (pools != idx[:, None])
+    nearest = other & (np.cumsum(other, axis=1) <= k)
+    ok = other & (nearest | (d <= reach * np.maximum(spacing[idx][:, None], spacing[q])))
     order = np.argsort(~ok, axis=1, kind="stable")
     out = np.take_along_axis(np.where(ok, pools, -1), order, 1)
     return np.ascontiguousarray(out)
