@@ -210,9 +210,9 @@ def cmd_fans_tiled(args) -> int:
     if os.path.exists(args.output) and not os.path.isdir(args.output):
         raise ValueError(f"with --tiles the output is a folder, and {args.output!r} is a file")
     if args.input.lower().endswith((".obj", ".ply", ".vtp", ".vtk", ".vtu", ".stl")):
-        warnings.warn(f"{os.path.basename(args.input)}: with --tiles only the points' "
-                      "coordinates are read (no faces, normals or point arrays): vertices "
-                      "that no face uses are kept", UserWarning, stacklevel=2)
+        warnings.warn(f"{os.path.basename(args.input)}: with --tiles the points and their "
+                      "arrays are read, not faces: vertices that no face uses are kept",
+                      UserWarning, stacklevel=2)
     fan_options = {key: values[key] for key in ("k", "max_angle", "max_replacements", "rule",
                                                 "rotate_sharp_edges", "reach",
                                                 "separate_sheets")}
@@ -238,6 +238,7 @@ def cmd_fans_tiled(args) -> int:
             ("halo", f"{min(t['halo'] for t in tiles):.4g} to {max(t['halo'] for t in tiles):.4g}"),
             ("fans open", f"{n_open:,} ({100 * n_open / max(n, 1):.2f}%)"),
             ("tiles flipped", f"{sum(t['flipped'] for t in tiles):,}"),
+            ("point arrays", ", ".join(index["point_arrays"]) or "none"),
             ("time", f"{elapsed:.2f} s"),
             ("written", os.path.join(args.output, "index.json") + " (+ fans.vtpd, tile_*.vtp)"),
         ])

@@ -427,6 +427,7 @@ def write_tiled_fans(
     rotate_sharp_edges: bool = True,
     reach: float = 5.0,
     separate_sheets: bool = False,
+    point_data=None,
     progress=None,
 ) -> dict:
     """The fan cloud of a cloud larger than memory, built in tiles and written per tile.
@@ -447,14 +448,14 @@ def write_tiled_fans(
     Each tile file is a fan cloud ``.vtp`` (``fancloud mesh tile_0000.vtp`` reads it) of the
     tile's own points followed by the points of other tiles that their fans use, with the
     point arrays ``GlobalPointIds`` (the point's row in the input) and ``vtkGhostType`` (1:
-    another tile's point; its fan is empty here). ParaView opens ``fans.vtpd`` as one
-    partitioned dataset.
+    another tile's point; its fan is empty here), and the input's own point arrays
+    (``point_data``). ParaView opens ``fans.vtpd`` as one partitioned dataset.
 
     Parameters
     ----------
     source : str, os.PathLike or array_like
         A point file (``.npy``, ``.ply``, ``.las``, ``.laz`` are read in chunks; other
-        formats whole) or an ``(n, 3)`` array. Only the coordinates are used.
+        formats whole) or an ``(n, 3)`` array.
     outdir : str or os.PathLike
         The output folder; made if missing, and must not hold a tiled fan cloud already
         (no ``index.json``) unless empty of one.
@@ -477,6 +478,14 @@ def write_tiled_fans(
         Points read at a time.
     max_angle, max_replacements, rule, rotate_sharp_edges, reach, separate_sheets
         As in ``build_fans``.
+    point_data : dict or bool, optional
+        The point arrays carried into the tiles (and back by :func:`read_tiles`). None
+        (default) or True: a file's own arrays, as :func:`fancloud_vtk.io.read_point_chunks`
+        reads them (LAS/LAZ ``RGB``, ``intensity``, ``classification``,
+        ``return_number``; PLY vertex properties; ``.npy``: none); for an array
+        ``source``, a dict of arrays with one row per point. False: none. An input array
+        named ``Normals``, ``fan_open`` or ``fan_rotated`` (the fan cloud's own) or as
+        the tiles' arrays is dropped with a ``DroppedArrayWarning``.
     progress : callable, optional
         ``progress(fraction, message)``, called as tiles finish.
 
@@ -484,9 +493,10 @@ def write_tiled_fans(
     -------
     dict
         The index (what ``index.json`` holds): ``n_points``, ``bounds``, ``tiles``,
-        ``parameters``, and per tile its ``file``, ``box``, ``halo``, ``owned``, ``built``,
-        ``ghosts``, ``flipped``; ``no_plane`` (global ids of the points whose fan plane
-        stands in for a normal, which the orientation of :func:`read_tiles` needs);
+        ``parameters``, ``point_arrays`` (the names carried), and per tile its ``file``,
+        ``box``, ``halo``, ``owned``, ``built``, ``ghosts``, ``flipped``; ``no_plane``
+        (global ids of the points whose fan plane stands in for a normal, which the
+        orientation of :func:`read_tiles` needs);
         ``timings``.
 
     Raises
@@ -534,7 +544,7 @@ def write_tiled_fans(
                                  "choose another folder or remove it")
     if os.path.exists(outdir) and not os.path.isdir(outdir):
         raise FanCloudInputError(f"{outdir} exists and is not a folder")
-    chunks = _chunk_source(source, chunk)
+    chunks = _chunk_source(source, chunk, point_data)
     report = progress if progress is not None else (lambda f, m: None)
     t_all = time.perf_counter()
     timings = {}
@@ -542,7 +552,7 @@ def write_tiled_fans(
     # pass 1: size, bounds, a sample
     t0 = time.perf_counter()
     report(0.0, "scan the input")
-    n, blo, bhi, sample = _scan(chunks())
+    n, blo, bhi, sample, schema = _scan(chunks())
     _F._check_size(n, k)
     check_spread(sample)  # all points on a line (or one point) have no fans
     t = _auto_tiles(n, blo, bhi, tile_points) if isinstance(tiles, str) else \
@@ -571,7 +581,8 @@ def write_tiled_fans(
         while todo:
             t0 = time.perf_counter()
             report(0.02, f"sort the points into {len(todo)} tile(s)")
-            counts = _bucket(chunks(), work, todo, lo, hi, widths, blo, bhi, t, number)
+            counts = _bucket(chunks(), work, todo, lo, hi, widths, blo, bhi, t, number,
+                             schema)
             t_sort += time.perf_counter() - t0
             t0 = time.perf_counter()
             jobs = []
@@ -580,7 +591,7 @@ def write_tiled_fans(
                     summaries[i] = _empty_summary(i, lo[i], hi[i], widths[i])
                     continue
                 jobs.append((work, i, lo[i], hi[i], widths[i], blo, bhi, t, number, options,
-                             outdir, n))
+                             outdir, n, schema))
             done_before = sum(s is not None for s in summaries)
             again = []
             for res in _map_tasks(dask, client, scheduler, _file_tile, jobs,
@@ -623,6 +634,7 @@ def write_tiled_fans(
         "parameters": {"k": k, "max_angle": max_angle, "max_replacements": max_replacements,
                        "rule": rule, "rotate_sharp_edges": bool(rotate_sharp_edges),
                        "reach": reach, "separate_sheets": bool(separate_sheets)},
+        "point_arrays": [name for name, _, _ in schema],
         "tile_list": [
             {"tile": i, "file": s["file"], "box": [lo[i].tolist(), hi[i].tolist()],
              "halo": float(widths[i]), "owned": s["owned"], "built": s["built"],
@@ -677,6 +689,7 @@ def read_tiles(outdir, *, orient: bool = True) -> FanCloud:
     turned = np.zeros(n, bool)
     seen = np.zeros(n, bool)
     parts = []
+    carried = {}  # the input's point arrays, one row per point
     for tile in tiles:
         if not tile["file"]:
             continue
@@ -700,6 +713,13 @@ def read_tiles(outdir, *, orient: bool = True) -> FanCloud:
         turned[ids] = flag[:own]
         s = np.diff(fc.offsets)[:own]
         sizes[ids] = s
+        for name, arr in fc.point_data.items():
+            if name in _TILE_ARRAYS:
+                continue
+            arr = np.asarray(arr)
+            if name not in carried:
+                carried[name] = np.zeros((n, *arr.shape[1:]), arr.dtype)
+            carried[name][ids] = arr[:own]
         parts.append((ids, s, gid[fc.ring[: fc.offsets[own]]]))
     if not seen.all():
         raise FileReadError(path, f"{int((~seen).sum()):,} point(s) in no tile file")
@@ -712,7 +732,7 @@ def read_tiles(outdir, *, orient: bool = True) -> FanCloud:
     p = index.get("parameters", {})
     info = {**p, "fans_open": int(is_open.sum()), "fans_rotated": int(rotated.sum()),
             "duplicates_merged": 0, "tiles": tuple(index.get("tiles", ()))}
-    fc = FanCloud(points, offsets, ring, normals, is_open, rotated, {}, info)
+    fc = FanCloud(points, offsets, ring, normals, is_open, rotated, carried, info)
     if orient:  # the fans as built (the orientation's result depends on them), oriented
         normals[turned] *= -1.0
         sizes_t = np.diff(offsets)
@@ -726,19 +746,57 @@ def read_tiles(outdir, *, orient: bool = True) -> FanCloud:
     return fc
 
 
-def _chunk_source(source, chunk):
-    """A function giving a fresh iterator over the source's chunks."""
+def _chunk_source(source, chunk, point_data=None):
+    """A function giving a fresh iterator over the source's chunks: (coordinates, point
+    arrays) pairs."""
     import os
 
     from .io import read_point_chunks
 
     if isinstance(chunk, bool) or not isinstance(chunk, int | np.integer) or chunk < 1:
         raise FanCloudInputError(f"chunk must be a positive integer, got {chunk!r}")
+    if point_data is not None and not isinstance(point_data, bool | np.bool_) \
+            and not hasattr(point_data, "items"):
+        raise TypeError("point_data must be None, True, False or a mapping of array name to "
+                        f"array, got {type(point_data).__name__}")
     if isinstance(source, str | bytes | os.PathLike):
+        if hasattr(point_data, "items"):
+            raise FanCloudInputError("point_data arrays go with an array source; a file "
+                                     "brings its own (point_data=True or False)")
         path = source  # (a bad file raises with the first chunk)
-        return lambda: read_point_chunks(path, chunk=int(chunk))
+        want = point_data is not False
+        return lambda: read_point_chunks(path, chunk=int(chunk), point_data=True) if want \
+            else ((c, {}) for c in read_point_chunks(path, chunk=int(chunk)))
     pts = as_points(source)
-    return lambda: (pts[i:i + chunk] for i in range(0, len(pts), chunk))
+    data = check_point_data(point_data, len(pts)) if hasattr(point_data, "items") else {}
+    return lambda: ((pts[i:i + chunk], {k: v[i:i + chunk] for k, v in data.items()})
+                    for i in range(0, len(pts), chunk))
+
+
+# the fan cloud's own point arrays and the tiles': an input array of one of these names
+# is not carried into the tiles
+_TILE_ARRAYS = ("Normals", "fan_open", "fan_rotated", "GlobalPointIds", "vtkGhostType",
+                "fan_flipped")
+
+
+def _carried(arrays, schema=None):
+    """The point arrays of a chunk that go into the tiles, checked against ``schema`` (the
+    first chunk's names, dtypes and row shapes; None: this is the first chunk)."""
+    from .io import DroppedArrayWarning
+
+    out = {}
+    for name, arr in arrays.items():
+        if name in _TILE_ARRAYS:
+            if schema is None:
+                warnings.warn(f"point array {name!r} dropped: the tiles' own array has that "
+                              "name", DroppedArrayWarning, stacklevel=4)
+            continue
+        out[str(name)] = np.ascontiguousarray(arr)
+    if schema is not None:
+        got = [(k, v.dtype.str, v.shape[1:]) for k, v in out.items()]
+        if got != schema:
+            raise FanCloudInputError(f"the chunks' point arrays differ: {got} after {schema}")
+    return out
 
 
 def _scan(chunks):
@@ -750,7 +808,11 @@ def _scan(chunks):
     rng = np.random.default_rng(0)
     keys = np.empty(0)
     sample = np.empty((0, 3))
-    for c in chunks:
+    schema = None
+    for c, arrays in chunks:
+        carried = _carried(arrays, schema)
+        if schema is None:
+            schema = [(k, v.dtype.str, v.shape[1:]) for k, v in carried.items()]
         c = np.asarray(c, np.float64)
         if c.ndim != 2 or c.shape[1] != 3:
             raise FanCloudInputError(f"points must have shape (n, 3), got a chunk {c.shape}")
@@ -771,7 +833,7 @@ def _scan(chunks):
         n += len(c)
     if n == 0:
         raise FanCloudInputError("the input has no points")
-    return n, blo, bhi, sample
+    return n, blo, bhi, sample, schema or []
 
 
 def _auto_tiles(n, blo, bhi, tile_points) -> np.ndarray:
@@ -804,20 +866,22 @@ def _owner(pts, blo, bhi, t, number) -> np.ndarray:
     return number[cell[:, 0], cell[:, 1], cell[:, 2]]
 
 
-def _bucket(chunks, work, todo, lo, hi, widths, blo, bhi, t, number) -> dict:
-    """Append each chunk's points (and their global ids) in a tile's grown box to the
-    tile's files in ``work``; {tile: (owned, in the grown box)}."""
+def _bucket(chunks, work, todo, lo, hi, widths, blo, bhi, t, number, schema=()) -> dict:
+    """Append each chunk's points (their global ids, their point arrays of ``schema``) in a
+    tile's grown box to the tile's files in ``work``; {tile: (owned, in the grown box)}."""
     import os
 
     counts = {i: [0, 0] for i in todo}
+    exts = [".xyz", ".ids"] + [f".a{j}" for j in range(len(schema))]
     for i in todo:
-        for ext in (".xyz", ".ids"):
+        for ext in exts:
             path = os.path.join(work, f"tile_{i:05d}{ext}")
             if os.path.exists(path):
                 os.remove(path)
     base = 0
     uniform = len(todo) == len(lo) and np.all(widths == widths[0])
-    for c in chunks:
+    for c, arrays in chunks:
+        arrays = list(_carried(arrays, list(schema)).values())
         c = np.asarray(c, np.float64)
         own = _owner(c, blo, bhi, t, number)
         if uniform:  # every tile, one width: each point's few tiles, not every tile
@@ -831,6 +895,9 @@ def _bucket(chunks, work, todo, lo, hi, widths, blo, bhi, t, number) -> dict:
                 c[inside].tofile(fh)
             with open(os.path.join(work, f"tile_{i:05d}.ids"), "ab") as fh:
                 (inside + base).astype(np.int64).tofile(fh)
+            for j, arr in enumerate(arrays):
+                with open(os.path.join(work, f"tile_{i:05d}.a{j}"), "ab") as fh:
+                    np.ascontiguousarray(arr[inside]).tofile(fh)
         base += len(c)
     return counts
 
@@ -882,7 +949,7 @@ def _grown_members(c, lo, hi, width, t, number):
             yield int(part_tiles[0]), part_rows
 
 
-def _file_tile(work, i, lo, hi, width, blo, bhi, t, number, options, outdir, n):
+def _file_tile(work, i, lo, hi, width, blo, bhi, t, number, options, outdir, n, schema=()):
     """One tile's task: read its points, build their fans (with the halo's), check the
     halo, orient over the tile, write ``tile_NNNN.vtp``; a summary dict."""
     import os
@@ -891,6 +958,8 @@ def _file_tile(work, i, lo, hi, width, blo, bhi, t, number, options, outdir, n):
     t_start = time.perf_counter()
     sub = np.fromfile(os.path.join(work, f"tile_{i:05d}.xyz"), np.float64).reshape(-1, 3)
     ids = np.fromfile(os.path.join(work, f"tile_{i:05d}.ids"), np.int64)
+    carried = {name: np.fromfile(os.path.join(work, f"tile_{i:05d}.a{j}"), np.dtype(dt))
+               .reshape((len(sub), *shape)) for j, (name, dt, shape) in enumerate(schema)}
     grid = _F.Grid(sub)
     if grid.n_dup:
         raise FanCloudInputError(f"duplicate points (at least {grid.n_dup:,} in tile {i}): "
@@ -922,7 +991,8 @@ def _file_tile(work, i, lo, hi, width, blo, bhi, t, number, options, outdir, n):
     ghost_type[len(own_loc):] = 1
     out = FanCloud(sub[order], offsets, new[ring_loc], fc.normals[order],
                    fc.open[order] & (ghost_type == 0), fc.rotated[order] & (ghost_type == 0),
-                   {"GlobalPointIds": ids[order], "vtkGhostType": ghost_type,
+                   {**{name: arr[order] for name, arr in carried.items()},
+                    "GlobalPointIds": ids[order], "vtkGhostType": ghost_type,
                     FAN_FLIPPED: turned[order]}, {})
     name = f"tile_{i:04d}.vtp"
     _write_tile(out, os.path.join(outdir, name))

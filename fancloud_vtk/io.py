@@ -528,6 +528,16 @@ def _read_ply(path: str) -> PointCloudFile:
         raise FileReadError(path, f"PLY vertex element lacks propert(ies) {', '.join(missing)}")
 
     points = np.column_stack([np.asarray(vdata[c], dtype=np.float64) for c in "xyz"])
+    # _read_ply <- read_point_cloud <- caller
+    return _finish(path, points, _ply_point_data(path, vdata, stacklevel=3), faces)
+
+
+def _ply_point_data(path: str, vdata, stacklevel: int, warn: bool = True) -> dict:
+    """The point arrays of PLY vertex rows (a structured array): ``Normals``, ``RGB`` or
+    ``RGBA``, and every other numeric scalar property under its own name (a list or
+    non-numeric property is dropped, with a :class:`DroppedArrayWarning` when ``warn``;
+    ``stacklevel`` counts from the caller of this function)."""
+    names = vdata.dtype.names or ()
     used = {"x", "y", "z"}
     point_data: dict[str, np.ndarray] = {}
 
@@ -557,11 +567,12 @@ def _read_ply(path: str) -> PointCloudFile:
         if field.shape != () or field.kind not in "biuf":
             # list properties on vertices are not per-point scalars
             kind = "a list property" if field.kind == "O" or field.shape else f"of type {field}"
-            _warn_dropped(path, name, f"{kind}, not a numeric per-point value",
-                          stacklevel=3)  # _read_ply <- read_point_cloud <- caller
+            if warn:
+                _warn_dropped(path, name, f"{kind}, not a numeric per-point value",
+                              stacklevel=stacklevel + 1)
             continue
         point_data[name] = np.array(vdata[name])
-    return _finish(path, points, point_data, faces)
+    return point_data
 
 
 # ----------------------------------------------------------------------------- OBJ
@@ -1031,16 +1042,22 @@ def _read_las(path: str) -> PointCloudFile:
     points = _las_xyz(las)
     if len(points) == 0:
         raise FileReadError(path, "the LAS/LAZ file contains no points")
-    names = set(las.point_format.dimension_names)
+    return _finish(path, points, _las_point_data(las, las.point_format), None)
+
+
+def _las_point_data(points, point_format) -> dict:
+    """The point arrays of LAS points: ``RGB`` (8 bits; 16-bit colours shifted down),
+    ``intensity``, ``classification``, ``return_number`` where the format has them."""
+    names = set(point_format.dimension_names)
     point_data: dict[str, np.ndarray] = {}
     if {"red", "green", "blue"} <= names:
-        rgb = np.column_stack([np.asarray(las[c]) for c in ("red", "green", "blue")])
+        rgb = np.column_stack([np.asarray(points[c]) for c in ("red", "green", "blue")])
         point_data["RGB"] = (rgb >> 8).astype(np.uint8) if rgb.max(initial=0) > 255 \
             else rgb.astype(np.uint8)
     for name in ("intensity", "classification", "return_number"):
         if name in names:
-            point_data[name] = np.array(las[name])
-    return _finish(path, points, point_data, None)
+            point_data[name] = np.array(points[name])
+    return point_data
 
 
 
@@ -1120,14 +1137,14 @@ def read_point_cloud(path: str | os.PathLike[str], *, format: str | None = None)
 
 
 def read_point_chunks(path: str | os.PathLike[str], *, chunk: int = 1_000_000,
-                      format: str | None = None) -> Iterator[np.ndarray]:
+                      format: str | None = None, point_data: bool = False) -> Iterator:
     """The points of a file, ``chunk`` at a time, without reading the file whole.
 
     For clouds larger than memory (:func:`fancloud_vtk.distributed.write_tiled_fans`
     reads its input this way). ``.npy`` is memory-mapped, binary PLY is memory-mapped
     (its vertex element, through ``plyfile``), ascii PLY is read line by line, LAS and LAZ
     through ``laspy``'s chunk iterator. Any other format is read whole by
-    :func:`read_point_cloud` and handed out in chunks. Only the coordinates are read.
+    :func:`read_point_cloud` and handed out in chunks.
 
     Parameters
     ----------
@@ -1137,12 +1154,19 @@ def read_point_chunks(path: str | os.PathLike[str], *, chunk: int = 1_000_000,
         Points per chunk (the last may be shorter).
     format : str, optional
         As in :func:`read_point_cloud`.
+    point_data : bool, default: False
+        Also read the point arrays :func:`read_point_cloud` reads: LAS/LAZ ``RGB``,
+        ``intensity``, ``classification``, ``return_number``; PLY ``Normals``, ``RGB`` or
+        ``RGBA`` and every other numeric vertex property; the other formats' arrays (a
+        ``.npy`` file holds coordinates only: none).
 
     Yields
     ------
-    numpy.ndarray
+    numpy.ndarray or tuple
         ``(m, 3)`` float64 coordinates, in the file's order (not checked for NaN: the
-        caller does, knowing the rows' numbers).
+        caller does, knowing the rows' numbers); with ``point_data``, ``(coordinates,
+        arrays)``, ``arrays`` a dict of arrays of ``m`` rows, the same names in every
+        chunk.
 
     Raises
     ------
@@ -1159,13 +1183,23 @@ def read_point_chunks(path: str | os.PathLike[str], *, chunk: int = 1_000_000,
     """
     if isinstance(chunk, bool) or not isinstance(chunk, int | np.integer) or chunk < 1:
         raise ValueError(f"chunk must be a positive integer, got {chunk!r}")
+    if not isinstance(point_data, bool | np.bool_):
+        raise TypeError(f"point_data must be True or False, got {point_data!r}")
+    for xyz, arrays in _chunks_with_data(path, int(chunk), format, bool(point_data)):
+        yield (xyz, arrays) if point_data else xyz
+
+
+def _chunks_with_data(path, chunk: int, format, want: bool) -> Iterator:
+    """(coordinates, point arrays) chunks of a file; the arrays only when ``want``."""
     path = os.fspath(path)
     if isinstance(path, bytes):
         path = os.fsdecode(path)
     fmt = (format or os.path.splitext(path)[1]).lower().lstrip(".")
     if not os.path.isfile(path) or fmt not in ("npy", "ply", "las", "laz"):
         cloud = read_point_cloud(path, format=format)  # raises the reader's FileReadError
-        yield from _slices(cloud.points, chunk)
+        for i in range(0, len(cloud.points), chunk):
+            arrays = {k: v[i:i + chunk] for k, v in cloud.point_data.items()} if want else {}
+            yield np.array(cloud.points[i:i + chunk], dtype=np.float64), arrays
         return
     if os.path.getsize(path) == 0:
         raise FileReadError(path, "the file is empty (0 bytes)")
@@ -1179,7 +1213,8 @@ def read_point_chunks(path: str | os.PathLike[str], *, chunk: int = 1_000_000,
                 or arr.shape[1] < 3 or arr.shape[0] == 0:
             raise FileReadError(path, f"expected an (n, >=3) real array, got {arr.dtype} "
                                       f"{arr.shape}")
-        yield from _slices(arr[:, :3], chunk)
+        for i in range(0, len(arr), chunk):
+            yield np.array(arr[i:i + chunk, :3], dtype=np.float64), {}
     elif fmt in ("las", "laz"):
         laspy = _laspy(path)
         try:
@@ -1191,18 +1226,23 @@ def read_point_chunks(path: str | os.PathLike[str], *, chunk: int = 1_000_000,
             if reader.header.point_count == 0:
                 raise FileReadError(path, "the LAS/LAZ file contains no points")
             for points in reader.chunk_iterator(int(chunk)):
-                yield _las_xyz(points)
+                arrays = _las_point_data(points, reader.header.point_format) if want else {}
+                yield _las_xyz(points), arrays
     else:
-        yield from _ply_chunks(path, int(chunk))
+        yield from _ply_chunks(path, int(chunk), want)
 
 
-def _slices(arr, chunk: int) -> Iterator[np.ndarray]:
-    for i in range(0, len(arr), chunk):
-        yield np.array(arr[i:i + chunk], dtype=np.float64)
+# PLY's scalar property types (both spellings) as numpy types
+_PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
+    "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}
 
 
-def _ply_chunks(path: str, chunk: int) -> Iterator[np.ndarray]:
-    """A PLY file's vertex coordinates in chunks: binary memory-mapped, ascii streamed."""
+def _ply_chunks(path: str, chunk: int, want: bool = False) -> Iterator:
+    """A PLY file's vertex coordinates and, when ``want``, point arrays, in chunks
+    ``(coordinates, arrays)``: binary memory-mapped, ascii streamed."""
     import plyfile
 
     with open(path, "rb") as fh:
@@ -1218,13 +1258,15 @@ def _ply_chunks(path: str, chunk: int) -> Iterator[np.ndarray]:
             raise FileReadError(path, "PLY vertex element is empty or lacks x, y, z")
         for i in range(0, len(vertex), chunk):
             rows = vertex[i:i + chunk]
-            yield np.column_stack([np.asarray(rows[c], np.float64) for c in "xyz"])
+            arrays = _ply_point_data(path, rows, stacklevel=1, warn=i == 0) if want else {}
+            yield np.column_stack([np.asarray(rows[c], np.float64) for c in "xyz"]), arrays
         return
     # ascii: the header names the columns; the vertex element must come first
     import itertools
 
     with open(path, "rb") as fh:
         props: list[str] = []
+        types: list[str] = []
         element, count, first = None, 0, None
         for line in fh:
             words = line.split()
@@ -1241,12 +1283,20 @@ def _ply_chunks(path: str, chunk: int) -> Iterator[np.ndarray]:
                     raise FileReadError(path, "ascii PLY vertex with a list property: read it "
                                               "with read_point_cloud")
                 props.append(words[-1].decode())
+                types.append(words[1].decode())
             elif words[0] == b"end_header":
                 break
         if first != b"vertex" or count == 0 or any(c not in props for c in "xyz"):
             raise FileReadError(path, "ascii PLY: the first element must be a non-empty "
                                       "'vertex' with x, y, z")
         cols = [props.index(c) for c in "xyz"]
+        dtype = None
+        if want:
+            unknown = [t for t in types if t not in _PLY_TYPES]
+            if unknown:
+                raise FileReadError(path, f"ascii PLY: unknown vertex property type(s) "
+                                          f"{', '.join(unknown)}")
+            dtype = np.dtype([(p, _PLY_TYPES[t]) for p, t in zip(props, types, strict=True)])
         left = count
         while left:
             lines = list(itertools.islice(fh, min(chunk, left)))
@@ -1254,8 +1304,20 @@ def _ply_chunks(path: str, chunk: int) -> Iterator[np.ndarray]:
                 raise FileReadError(path, f"ascii PLY ends after {count - left:,} of "
                                           f"{count:,} vertices")
             try:
-                block = np.loadtxt(lines, usecols=cols, ndmin=2, dtype=np.float64)
+                block = np.loadtxt(lines, usecols=None if want else cols, ndmin=2,
+                                   dtype=np.float64)
             except ValueError as exc:
                 raise FileReadError(path, f"ascii PLY vertex rows: {exc}") from exc
+            arrays = {}
+            if want:
+                if block.shape[1] != len(props):
+                    raise FileReadError(path, f"ascii PLY vertex rows have {block.shape[1]} "
+                                              f"values, the header names {len(props)}")
+                rows = np.empty(len(block), dtype)
+                for j, p in enumerate(props):
+                    rows[p] = block[:, j]
+                arrays = _ply_point_data(path, rows, stacklevel=1, warn=False)
+                block = block[:, cols]
             left -= len(lines)
-            yield block
+            yield block, arrays
+

@@ -336,9 +336,23 @@ def test_files_are_read_in_chunks(tmp_path, fmt):
         header.offsets = np.zeros(3)
         las = laspy.LasData(header)
         las.x, las.y, las.z = points[:, 0], points[:, 1], points[:, 2]
+        las.intensity = np.arange(len(points)) % 5000
+        las.classification = np.arange(len(points)) % 7
+        las.red = las.green = las.blue = (np.arange(len(points)) % 256) * 256
         las.write(str(path))
     else:
         np.savetxt(path, points)
+    # with point_data: the arrays read_point_cloud gives, chunk by chunk
+    from fancloud_vtk.io import read_point_cloud
+
+    pairs = list(read_point_chunks(path, chunk=1_000, point_data=True))
+    whole = read_point_cloud(path).point_data
+    assert all(set(a) == set(whole) for _, a in pairs)
+    for name, arr in whole.items():
+        got = np.concatenate([a[name] for _, a in pairs])
+        assert got.dtype == arr.dtype and np.array_equal(got, arr), name
+    assert {"ply": {"q"}, "las": {"intensity", "classification", "return_number", "RGB"},
+            }.get(fmt.split("-")[0], {"q"} if fmt == "ply-ascii" else set()) <= set(whole)
     chunks = list(read_point_chunks(path, chunk=1_000))
     assert [len(c) for c in chunks] == [1_000, 1_000, 500]
     assert all(c.dtype == np.float64 and c.shape[1] == 3 for c in chunks)
@@ -347,6 +361,53 @@ def test_files_are_read_in_chunks(tmp_path, fmt):
         from fancloud_vtk.io import read_point_cloud
 
         np.testing.assert_allclose(read_point_cloud(path).points, points, atol=1e-9)
+
+
+def test_the_input_point_arrays_go_through_the_tiles(tmp_path):
+    """A LAS file's intensity, classification, return number and colours (or an array
+    source's point_data) go into the tile files and come back with read_tiles, row for
+    row; the fans are still build_fans'."""
+    laspy = pytest.importorskip("laspy")
+    from fancloud_vtk import DroppedArrayWarning, load
+    from fancloud_vtk.io import read_point_cloud
+
+    points = np.round(sphere(12_000, seed=6) * 100, 3)  # LAS stores 1e-3 steps
+    header = laspy.LasHeader(point_format=3, version="1.2")
+    header.scales = np.array([1e-3, 1e-3, 1e-3])
+    header.offsets = np.zeros(3)
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = points[:, 0], points[:, 1], points[:, 2]
+    las.intensity = np.arange(len(points)) % 4000
+    las.classification = np.arange(len(points)) % 9
+    las.red = (np.arange(len(points)) % 256) * 256
+    las.write(str(tmp_path / "cloud.las"))
+    whole = read_point_cloud(tmp_path / "cloud.las")
+    index = D.write_tiled_fans(tmp_path / "cloud.las", tmp_path / "out", tiles=(2, 2, 1),
+                               scheduler="sync", chunk=5_000)
+    assert index["point_arrays"] == list(whole.point_data)
+    fc = D.read_tiles(tmp_path / "out")
+    assert same(fc, build_fans(whole.points))
+    assert set(fc.point_data) == set(whole.point_data)
+    for name, arr in whole.point_data.items():
+        assert fc.point_data[name].dtype == arr.dtype and np.array_equal(fc.point_data[name],
+                                                                           arr), name
+    tile = load(tmp_path / "out" / index["tile_list"][0]["file"])  # a tile file has them
+    gid = tile.point_data["GlobalPointIds"]
+    np.testing.assert_array_equal(tile.point_data["intensity"], whole.point_data["intensity"][gid])
+    # point_data=False: none; an array source brings its own dict; Normals is the fans'
+    index = D.write_tiled_fans(tmp_path / "cloud.las", tmp_path / "bare", tiles=(2, 1, 1),
+                               scheduler="sync", point_data=False)
+    assert index["point_arrays"] == [] and D.read_tiles(tmp_path / "bare").point_data == {}
+    heat = np.linspace(0, 1, len(points))
+    with pytest.warns(DroppedArrayWarning, match="Normals"):
+        D.write_tiled_fans(points, tmp_path / "arr", tiles=(1, 2, 1), scheduler="sync",
+                           point_data={"heat": heat, "Normals": points})
+    back = D.read_tiles(tmp_path / "arr")
+    assert list(back.point_data) == ["heat"] and np.array_equal(back.point_data["heat"], heat)
+    with pytest.raises(FanCloudInputError, match="array source"):
+        D.write_tiled_fans(tmp_path / "cloud.las", tmp_path / "x", point_data={"heat": heat})
+    with pytest.raises(ValueError, match="heat"):
+        D.write_tiled_fans(points, tmp_path / "y", point_data={"heat": heat[:10]})
 
 
 def test_bad_chunked_input_is_refused(tmp_path):
@@ -400,6 +461,7 @@ def test_the_command_writes_tiles_on_a_local_cluster(tmp_path, capsys):
     assert code == 0
     text = capsys.readouterr().out
     assert "tiles" in text and "60,000" in text
+    assert "point arrays" in text and "none" in text  # a .npy holds coordinates only
     assert same(D.read_tiles(out), build_fans(points))
     with pytest.raises(SystemExit):  # argparse: exit code 2 and the usage
         main(["fans", str(tmp_path / "big.npy"), "-o", str(out), "--tiles", "1,1"])
