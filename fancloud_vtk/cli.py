@@ -340,12 +340,15 @@ def cmd_reduce_tiled(args) -> int:
                 and values[p.name] != p.default:
             raise ValueError(f"--{p.name.replace('_', '-')} does not go with --tiles (the "
                              f"blocks reduce points: {', '.join(TILED_REDUCE_OPTIONS)})")
-    if args.input.lower().endswith((".obj", ".ply", ".vtp", ".vtk", ".vtu", ".stl")):
-        warnings.warn(f"{os.path.basename(args.input)}: with --tiles only the points' "
-                      "coordinates are reduced (no faces, normals or point arrays): vertices "
-                      "that no face uses are kept", UserWarning, stacklevel=2)
     t0 = time.perf_counter()
-    points = read_point_cloud(args.input).points
+    cloud = read_point_cloud(args.input)
+    points = cloud.points
+    if cloud.faces is not None:
+        warnings.warn(f"{os.path.basename(args.input)}: with --tiles the points are "
+                      "reduced, not the mesh (its faces are left out): vertices that no face "
+                      "uses are kept", UserWarning, stacklevel=2)
+    # the point arrays go with the kept points; a file's normals are not the fans'
+    arrays = {name: arr for name, arr in cloud.point_data.items() if name != "Normals"}
     t_read = time.perf_counter() - t0
     # duplicates merged as build_fans merges them (the first of each kept), which
     # tiled_reduce leaves to its caller; original_id then maps to the file's rows
@@ -358,6 +361,7 @@ def cmd_reduce_tiled(args) -> int:
     t0 = time.perf_counter()
     try:
         small = tiled_reduce(points[first], n_points=args.n_points, keep=args.keep,
+                             point_data={name: arr[first] for name, arr in arrays.items()},
                              tiles=args.tiles, tile_points=args.tile_points,
                              scheduler=args.scheduler, workers=args.workers, progress=progress,
                              **{name: values[name] for name in TILED_REDUCE_OPTIONS})

@@ -779,7 +779,7 @@ _TILE_ARRAYS = ("Normals", "fan_open", "fan_rotated", "GlobalPointIds", "vtkGhos
                 "fan_flipped")
 
 
-def _carried(arrays, schema=None):
+def _carried(arrays, schema=None, stacklevel=4):
     """The point arrays of a chunk that go into the tiles, checked against ``schema`` (the
     first chunk's names, dtypes and row shapes; None: this is the first chunk)."""
     from .io import DroppedArrayWarning
@@ -789,7 +789,7 @@ def _carried(arrays, schema=None):
         if name in _TILE_ARRAYS:
             if schema is None:
                 warnings.warn(f"point array {name!r} dropped: the tiles' own array has that "
-                              "name", DroppedArrayWarning, stacklevel=4)
+                              "name", DroppedArrayWarning, stacklevel=stacklevel)
             continue
         out[str(name)] = np.ascontiguousarray(arr)
     if schema is not None:
@@ -1231,6 +1231,7 @@ def tiled_reduce(
     rotate_sharp_edges: bool = True,
     reach: float = 5.0,
     separate_sheets: bool = False,
+    point_data=None,
     progress=None,
 ) -> FanCloud:
     """The reduction of a point cloud in blocks, as Dask tasks (the paper's §8 blocks).
@@ -1270,6 +1271,10 @@ def tiled_reduce(
     max_angle, max_replacements, rule, rotate_sharp_edges, reach, separate_sheets
         The fans' parameters, as in :func:`fancloud_vtk.build_fans` (the blocks' fans and
         the fans built again along their faces).
+    point_data : dict, optional
+        Arrays with one row per point: the kept points' rows are passed through (one
+        named as the fan cloud's own, ``Normals``, ``fan_open``, ``fan_rotated``, is
+        dropped with a ``DroppedArrayWarning``).
     progress : callable, optional
         ``progress(fraction, message)`` after each block (``fancloud reduce --tiles``
         draws its bar from it).
@@ -1277,9 +1282,10 @@ def tiled_reduce(
     Returns
     -------
     FanCloud
-        The reduced fan cloud (exactly the target's points), with the point array
-        ``original_id`` (rows of ``points``); ``info`` adds ``tiles``, ``halo``,
-        ``fans_rebuilt`` (the fans built again along the blocks' faces) and ``timings``.
+        The reduced fan cloud (exactly the target's points), with the kept rows of
+        ``point_data`` and the point array ``original_id`` (rows of ``points``); ``info``
+        adds ``tiles``, ``halo``, ``fans_rebuilt`` (the fans built again along the blocks'
+        faces) and ``timings``.
 
     Examples
     --------
@@ -1307,6 +1313,7 @@ def tiled_reduce(
     tile_points = _check_tile_points(tile_points)
     pts = as_points(points)
     n = len(pts)
+    data = _carried(check_point_data(point_data, n), stacklevel=3)
     _F._check_size(n, k)
     check_spread(pts)
     target = target_count(n, n_points, keep)
@@ -1392,6 +1399,8 @@ def tiled_reduce(
         ring[~from_fresh] = old_ring[take[~from_fresh]]
     fc = FanCloud(sub, offsets, ring, normals, is_open, np.zeros(m, bool), {}, {})
     fc = _F._orient_fans(fc, np.zeros(m, bool))
+    for name, arr in data.items():
+        fc.point_data[name] = arr[kept]
     fc.point_data["original_id"] = kept
     timings["stitch"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all

@@ -550,6 +550,41 @@ def test_blocked_reduction_has_no_seam_and_the_error_of_one_process(tiles, n, bo
     np.testing.assert_array_equal(np.sort(again.point_data["original_id"]), np.sort(ids))
 
 
+def test_blocked_reduction_passes_the_kept_points_arrays_through(tmp_path, capsys):
+    """tiled_reduce(point_data=...) and ``fancloud reduce --tiles``: the kept points keep
+    their rows of the input's point arrays (a file's colours too); an array named as the
+    fan cloud's own normals is dropped with a warning."""
+    from fancloud_vtk import DroppedArrayWarning
+    from fancloud_vtk.algorithms.convert import fancloud_from_vtk, read_vtp
+    from fancloud_vtk.cli import main
+
+    points, _ = torus(6_000, seed=4)
+    heat = np.arange(len(points), dtype=np.float32)
+    rgb = (np.arange(len(points) * 3) % 251).astype(np.uint8).reshape(-1, 3)
+    with pytest.warns(DroppedArrayWarning, match="Normals"):
+        fc = tiled_reduce(points, keep=0.3, tiles=(2, 1, 1), scheduler="sync",
+                          point_data={"heat": heat, "RGB": rgb, "Normals": points})
+    ids = fc.point_data["original_id"]
+    assert set(fc.point_data) == {"heat", "RGB", "original_id"}
+    np.testing.assert_array_equal(fc.point_data["heat"], heat[ids])
+    np.testing.assert_array_equal(fc.point_data["RGB"], rgb[ids])
+    import plyfile
+
+    v = np.empty(len(points), [(c, "f8") for c in "xyz"] + [(c, "u1") for c in
+                                                          ("red", "green", "blue")])
+    for j, c in enumerate("xyz"):
+        v[c] = points[:, j]
+    for j, c in enumerate(("red", "green", "blue")):
+        v[c] = rgb[:, j]
+    plyfile.PlyData([plyfile.PlyElement.describe(v, "vertex")]).write(str(tmp_path / "c.ply"))
+    assert main(["reduce", str(tmp_path / "c.ply"), "-o", str(tmp_path / "s.vtp"), "--keep",
+                 "0.3", "--tiles", "2,1,1", "-q"]) == 0
+    capsys.readouterr()
+    small = fancloud_from_vtk(read_vtp(str(tmp_path / "s.vtp")))
+    np.testing.assert_array_equal(small.point_data["RGB"],
+                                  rgb[small.point_data["original_id"]])
+
+
 def test_blocked_reduction_refuses_bad_input():
     points, _ = torus(5_000)
     with pytest.raises(FanCloudInputError, match="duplicate"):
