@@ -321,7 +321,7 @@ def cmd_reduce_tiled(args) -> int:
     """``fancloud reduce BIG -o OUT --keep F --tiles ...``: the reduction in blocks on Dask
     (:func:`fancloud_vtk.distributed.tiled_reduce`, in memory), written as one fan cloud
     (or, with ``--mesh``, its mesh made in this process)."""
-    from fancloud_vtk import DuplicatePointsWarning, fan_cloud_to_mesh
+    from fancloud_vtk import fan_cloud_to_mesh
     from fancloud_vtk.algorithms.convert import (
         MESH_FORMATS,
         fancloud_to_vtk,
@@ -329,6 +329,7 @@ def cmd_reduce_tiled(args) -> int:
         write_mesh,
         write_vtp,
     )
+    from fancloud_vtk.core.fans import first_of_duplicates
     from fancloud_vtk.distributed import tiled_reduce
     from fancloud_vtk.io import read_point_cloud
 
@@ -352,11 +353,7 @@ def cmd_reduce_tiled(args) -> int:
     t_read = time.perf_counter() - t0
     # duplicates merged as build_fans merges them (the first of each kept), which
     # tiled_reduce leaves to its caller; original_id then maps to the file's rows
-    first = np.sort(np.unique(points, axis=0, return_index=True)[1])
-    if len(first) < len(points):
-        warnings.warn(f"{len(points) - len(first)} duplicate point(s) merged: the first of "
-                      "each set of identical points is kept; the 'original_id' point array "
-                      "maps the result to the input", DuplicatePointsWarning, stacklevel=2)
+    first = first_of_duplicates(points, stacklevel=2)
     progress = _Progress("reduce in tiles", args.quiet)
     t0 = time.perf_counter()
     try:

@@ -186,12 +186,7 @@ point_data
     t_all = time.perf_counter()
     grid = _F.Grid(pts)  # the spatial order of the orientation, and the duplicates
     if grid.n_dup:  # merged as build_fans merges them: the first of each kept
-        _, first = np.unique(pts, axis=0, return_index=True)
-        keep = np.sort(first)
-        warnings.warn(
-            f"{n - len(keep)} duplicate point(s) merged: the first of each set of identical "
-            "points is kept; the 'original_id' point array maps the result to the input",
-            _F.DuplicatePointsWarning, stacklevel=2)
+        keep = _F.first_of_duplicates(pts, stacklevel=2)
         sub = {name: arr[keep] for name, arr in pdata.items()}
         sub["original_id"] = keep.astype(np.int64)
         fc = tiled_fans(pts[keep], k, tiles=tiles, halo=halo, scheduler=scheduler,

@@ -156,6 +156,7 @@ def test_duplicated_points_are_merged_and_mapped_back():
     with pytest.warns(DuplicatePointsWarning, match="60 duplicate point") as record:
         fc = build_fans(full, point_data={"label": label})
     assert len(record) == 1
+    assert record[0].filename == __file__  # the warning points at the caller's line
     assert fingerprint(full, label) == before
     assert fc.n_points == N and fc.info["duplicates_merged"] == 60
     ids = fc.point_data["original_id"]

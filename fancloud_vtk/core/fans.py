@@ -459,16 +459,24 @@ def _check_size(n, k):
         )
 
 
-def _merge_duplicates(pts, k, given_normals, pdata, kwargs):
+def first_of_duplicates(pts, stacklevel: int = 2) -> np.ndarray:
+    """The rows of ``pts`` that merging exact duplicates keeps (the first of each set of
+    identical points), increasing; a :class:`DuplicatePointsWarning` when any row goes
+    (``stacklevel`` counts from the caller of this function). The one rule of
+    ``build_fans``, ``tiled_fans`` and ``fancloud reduce --tiles``."""
     _, first = np.unique(pts, axis=0, return_index=True)
     keep = np.sort(first)
+    if len(keep) < len(pts):
+        warnings.warn(
+            f"{len(pts) - len(keep)} duplicate point(s) merged: the first of each set of "
+            "identical points is kept; the 'original_id' point array maps the result to the "
+            "input", DuplicatePointsWarning, stacklevel=stacklevel + 1)
+    return keep
+
+
+def _merge_duplicates(pts, k, given_normals, pdata, kwargs):
+    keep = first_of_duplicates(pts, stacklevel=4)  # <- _fans <- build_fans <- caller
     n_dup = len(pts) - len(keep)
-    warnings.warn(
-        f"{n_dup} duplicate point(s) merged: the first of each set of identical points is "
-        "kept; the 'original_id' point array maps the result to the input",
-        DuplicatePointsWarning,
-        stacklevel=3,
-    )
     _check_size(len(keep), k)
     sub = {name: arr[keep] for name, arr in pdata.items()}
     sub["original_id"] = keep.astype(np.int64)
