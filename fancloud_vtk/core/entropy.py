@@ -282,7 +282,9 @@ def fan_cloud_of_mesh(points, triangles, *, normals=None, point_data=None,
     """The fan cloud of a triangle mesh: every vertex's one-ring is its fan.
 
     Rings follow the triangles counter-clockwise; a boundary vertex gets an
-    open fan; the normals are ``normals`` if given (unit vectors, one per
+    open fan. Triangles turned the other way round than their neighbours are
+    turned back first (:func:`consistent_orientation`; ``info["triangles_turned"]``
+    counts them). The normals are ``normals`` if given (unit vectors, one per
     point), else the area-weighted triangle normals, so they follow the
     mesh's orientation. A vertex whose triangles do not form one
     fan (non-manifold) gets its neighbours sorted by angle around its
@@ -342,14 +344,87 @@ def fan_cloud_of_mesh(points, triangles, *, normals=None, point_data=None,
         raise ValueError("the mesh has no triangles: no one-rings to take as fans")
     n = len(pts)
     tri = tri[(tri[:, 0] != tri[:, 1]) & (tri[:, 1] != tri[:, 2]) & (tri[:, 0] != tri[:, 2])]
+    offsets, ring, is_open, ok = EK.one_rings(np.ascontiguousarray(tri, np.int64), n)
+    turned = 0
+    if not ok.all():  # a vertex whose triangles are no fan: some may be turned the wrong way
+        tri, turned = consistent_orientation(tri, n)
+        if turned:
+            offsets, ring, is_open, ok = EK.one_rings(np.ascontiguousarray(tri, np.int64), n)
     if normals is None:
         normals = _area_normals(pts, tri)
-    offsets, ring, is_open, ok = EK.one_rings(np.ascontiguousarray(tri, np.int64), n)
     if not ok.all():
         offsets, ring, is_open = _sorted_rings(pts, normals, tri, offsets, ring, is_open, ok)
     return FanCloud(pts, offsets, ring, normals, is_open, None, pdata,
                     {"source": "triangle mesh", "triangles": int(len(tri)),
-                     UNREFERENCED_DROPPED: dropped})
+                     "triangles_turned": turned, UNREFERENCED_DROPPED: dropped})
+
+
+def consistent_orientation(triangles, n: int) -> tuple[np.ndarray, int]:
+    """The triangles turned to run the same way round as their neighbours; how many turned.
+
+    Mesh files often hold some faces the other way round (an STL or OBJ export
+    of parts, a model mended by hand); each vertex's one-ring then falls apart
+    into pieces. Over the edges shared by exactly two triangles, a triangle
+    whose shared edge runs the same way as its neighbour's is turned, from one
+    triangle of each edge-connected piece (breadth first); of the two ways
+    round, each piece keeps the one most of its triangles had. A mesh already
+    consistent is returned as it is (the same array). A non-orientable piece
+    (a Moebius strip) keeps the conflicts that are left.
+    """
+    tri = np.asarray(triangles, np.int64)
+    m = len(tri)
+    if m == 0:
+        return tri, 0
+    # directed half-edges; an undirected edge of exactly two triangles
+    a = tri.ravel()
+    b = np.roll(tri, -1, axis=1).ravel()
+    face = np.repeat(np.arange(m), 3)
+    key = np.minimum(a, b) * n + np.maximum(a, b)
+    order = np.argsort(key, kind="stable")
+    k = key[order]
+    first = np.ones(len(k), bool)
+    first[1:] = k[1:] != k[:-1]
+    starts = np.flatnonzero(first)
+    counts = np.diff(np.append(starts, len(k)))
+    pair = starts[counts == 2]
+    e0, e1 = order[pair], order[pair + 1]
+    same = a[e0] == a[e1]  # the same direction in both: one of the two must turn
+    if not same.any():
+        return tri, 0
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, connected_components
+
+    f0, f1 = face[e0], face[e1]
+    graph = coo_matrix((np.ones(len(f0)), (f0, f1)), shape=(m, m)).tocsr()
+    graph = graph + graph.T
+    _, label = connected_components(graph, directed=False)
+    # the adjacencies (both ways) sorted by key, with 1 where the two triangles disagree
+    adj_key = np.concatenate([f0 * m + f1, f1 * m + f0])
+    adj_odd = np.concatenate([same, same])
+    srt = np.argsort(adj_key, kind="stable")
+    adj_key, adj_odd = adj_key[srt], adj_odd[srt]
+    flip = np.zeros(m, bool)
+    roots = np.unique(label, return_index=True)[1]  # the first triangle of each piece
+    for root in roots:
+        visit, pred = breadth_first_order(graph, root, directed=False)
+        visit, pred = visit.astype(np.int64), pred.astype(np.int64)  # (int32: keys overflow)
+        if len(visit) < 2:
+            continue
+        child = visit[1:]
+        odd = adj_odd[np.searchsorted(adj_key, pred[child] * m + child)]
+        # in breadth-first order a triangle's predecessor comes first
+        parent = pred[child].tolist()
+        step = odd.tolist()
+        f = flip.view(np.uint8)
+        for v, u, o in zip(child.tolist(), parent, step, strict=True):
+            f[v] = f[u] ^ o
+        if flip[visit].sum() * 2 > len(visit):  # keep the way most of them ran
+            flip[visit] = ~flip[visit]
+    if not flip.any():
+        return tri, 0
+    out = tri.copy()
+    out[flip] = out[flip][:, ::-1]
+    return out, int(flip.sum())
 
 
 def _area_normals(pts, tri):
