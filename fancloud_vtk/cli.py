@@ -209,7 +209,8 @@ def cmd_fans_tiled(args) -> int:
     _check_scheduler(args)
     if os.path.exists(args.output) and not os.path.isdir(args.output):
         raise ValueError(f"with --tiles the output is a folder, and {args.output!r} is a file")
-    if args.input.lower().endswith((".obj", ".ply", ".vtp", ".vtk", ".vtu", ".stl")):
+    if args.input.lower().endswith((".obj", ".vtp", ".vtk", ".vtu", ".stl")) \
+            or args.input.lower().endswith(".ply") and _ply_has_faces(args.input):
         warnings.warn(f"{os.path.basename(args.input)}: with --tiles the points and their "
                       "arrays are read, not faces: vertices that no face uses are kept",
                       UserWarning, stacklevel=2)
@@ -382,6 +383,21 @@ def cmd_reduce_tiled(args) -> int:
     if not args.quiet:
         _print_rows(rows)
     return 0
+
+
+def _ply_has_faces(path) -> bool:
+    """Does the PLY file's header declare a non-empty face element? (A point cloud's does
+    not; an unreadable file is left to the reader.)"""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(65536)
+    except OSError:
+        return False
+    for line in head.split(b"end_header", 1)[0].splitlines():
+        words = line.split()
+        if len(words) == 3 and words[0] == b"element" and words[1] == b"face":
+            return words[2] != b"0"
+    return False
 
 
 def _check_scheduler(args) -> None:

@@ -649,3 +649,38 @@ def test_the_reduce_command_in_tiles_on_a_scheduler_address(tmp_path, capsys):
                      "--keep", "0.2", *extra]) == 2
         assert message in capsys.readouterr().err
     assert not (tmp_path / "x.vtp").exists()
+
+
+def test_the_fans_command_in_tiles_carries_a_ply_files_colours(tmp_path, capsys):
+    """``fancloud fans cloud.ply -o OUT --tiles``: the colours of a PLY point cloud go into
+    the tiles, with no warning; a PLY with faces is warned about (its faces are not read)."""
+    import plyfile
+
+    from fancloud_vtk.cli import main
+
+    points = sphere(8_000, seed=9)
+    rgb = (np.arange(len(points) * 3) % 253).astype(np.uint8).reshape(-1, 3)
+    v = np.empty(len(points), [(c, "f8") for c in "xyz"]
+                 + [(c, "u1") for c in ("red", "green", "blue")])
+    for j, c in enumerate("xyz"):
+        v[c] = points[:, j]
+    for j, c in enumerate(("red", "green", "blue")):
+        v[c] = rgb[:, j]
+    vertex = plyfile.PlyElement.describe(v, "vertex")
+    plyfile.PlyData([vertex]).write(str(tmp_path / "cloud.ply"))
+    pytest.importorskip("dask.distributed")
+    with warnings.catch_warnings():
+        warnings.simplefilter("default")
+        assert main(["fans", str(tmp_path / "cloud.ply"), "-o", str(tmp_path / "out"),
+                     "--tiles", "2,1,1", "--workers", "1"]) == 0
+    captured = capsys.readouterr()
+    assert "warning" not in captured.err and "RGB" in captured.out
+    np.testing.assert_array_equal(D.read_tiles(tmp_path / "out").point_data["RGB"], rgb)
+    from fancloud_vtk.cli import _ply_has_faces
+
+    assert not _ply_has_faces(tmp_path / "cloud.ply")
+    faces = np.empty(1, [("vertex_indices", "i4", (3,))])
+    faces["vertex_indices"] = [[0, 1, 2]]
+    plyfile.PlyData([vertex, plyfile.PlyElement.describe(faces, "face")]).write(
+        str(tmp_path / "mesh.ply"))
+    assert _ply_has_faces(tmp_path / "mesh.ply")
