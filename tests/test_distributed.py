@@ -23,6 +23,38 @@ def sphere(n, seed=0):
     return p / np.linalg.norm(p, axis=1)[:, None]
 
 
+def write_las(path, points):
+    """A LAS file of the points (1e-3 steps) with intensity, classification and colours."""
+    laspy = pytest.importorskip("laspy")
+    header = laspy.LasHeader(point_format=3, version="1.2")
+    header.scales = np.array([1e-3, 1e-3, 1e-3])
+    header.offsets = np.zeros(3)
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = points[:, 0], points[:, 1], points[:, 2]
+    las.intensity = np.arange(len(points)) % 5000
+    las.classification = np.arange(len(points)) % 7
+    las.red = las.green = las.blue = (np.arange(len(points)) % 256) * 256
+    las.write(str(path))
+
+
+def write_ply_rgb(path, points, rgb, faces=None):
+    """A binary PLY of the points with 8-bit colours (and triangles, if given)."""
+    import plyfile
+
+    v = np.empty(len(points), [(c, "f8") for c in "xyz"]
+                 + [(c, "u1") for c in ("red", "green", "blue")])
+    for j, c in enumerate("xyz"):
+        v[c] = points[:, j]
+    for j, c in enumerate(("red", "green", "blue")):
+        v[c] = rgb[:, j]
+    elements = [plyfile.PlyElement.describe(v, "vertex")]
+    if faces is not None:
+        f = np.empty(len(faces), [("vertex_indices", "i4", (3,))])
+        f["vertex_indices"] = faces
+        elements.append(plyfile.PlyElement.describe(f, "face"))
+    plyfile.PlyData(elements).write(str(path))
+
+
 def ramp_with_gap(n, seed=1):
     """A noisy plane whose density falls 1000-fold across it, with a gap 5% wide: open
     fans along the gap and the border, whose gap-directed search reaches far."""
@@ -330,16 +362,7 @@ def test_files_are_read_in_chunks(tmp_path, fmt):
         plyfile.PlyData([plyfile.PlyElement.describe(v, "vertex")],
                         text=fmt == "ply-ascii").write(str(path))
     elif fmt in ("las", "laz"):
-        laspy = pytest.importorskip("laspy")
-        header = laspy.LasHeader(point_format=3, version="1.2")
-        header.scales = np.array([1e-3, 1e-3, 1e-3])
-        header.offsets = np.zeros(3)
-        las = laspy.LasData(header)
-        las.x, las.y, las.z = points[:, 0], points[:, 1], points[:, 2]
-        las.intensity = np.arange(len(points)) % 5000
-        las.classification = np.arange(len(points)) % 7
-        las.red = las.green = las.blue = (np.arange(len(points)) % 256) * 256
-        las.write(str(path))
+        write_las(path, points)
     else:
         np.savetxt(path, points)
     # with point_data: the arrays read_point_cloud gives, chunk by chunk
@@ -367,20 +390,11 @@ def test_the_input_point_arrays_go_through_the_tiles(tmp_path):
     """A LAS file's intensity, classification, return number and colours (or an array
     source's point_data) go into the tile files and come back with read_tiles, row for
     row; the fans are still build_fans'."""
-    laspy = pytest.importorskip("laspy")
     from fancloud_vtk import DroppedArrayWarning, load
     from fancloud_vtk.io import read_point_cloud
 
     points = np.round(sphere(12_000, seed=6) * 100, 3)  # LAS stores 1e-3 steps
-    header = laspy.LasHeader(point_format=3, version="1.2")
-    header.scales = np.array([1e-3, 1e-3, 1e-3])
-    header.offsets = np.zeros(3)
-    las = laspy.LasData(header)
-    las.x, las.y, las.z = points[:, 0], points[:, 1], points[:, 2]
-    las.intensity = np.arange(len(points)) % 4000
-    las.classification = np.arange(len(points)) % 9
-    las.red = (np.arange(len(points)) % 256) * 256
-    las.write(str(tmp_path / "cloud.las"))
+    write_las(tmp_path / "cloud.las", points)
     whole = read_point_cloud(tmp_path / "cloud.las")
     index = D.write_tiled_fans(tmp_path / "cloud.las", tmp_path / "out", tiles=(2, 2, 1),
                                scheduler="sync", chunk=5_000)
@@ -568,15 +582,7 @@ def test_blocked_reduction_passes_the_kept_points_arrays_through(tmp_path, capsy
     assert set(fc.point_data) == {"heat", "RGB", "original_id"}
     np.testing.assert_array_equal(fc.point_data["heat"], heat[ids])
     np.testing.assert_array_equal(fc.point_data["RGB"], rgb[ids])
-    import plyfile
-
-    v = np.empty(len(points), [(c, "f8") for c in "xyz"] + [(c, "u1") for c in
-                                                          ("red", "green", "blue")])
-    for j, c in enumerate("xyz"):
-        v[c] = points[:, j]
-    for j, c in enumerate(("red", "green", "blue")):
-        v[c] = rgb[:, j]
-    plyfile.PlyData([plyfile.PlyElement.describe(v, "vertex")]).write(str(tmp_path / "c.ply"))
+    write_ply_rgb(tmp_path / "c.ply", points, rgb)
     assert main(["reduce", str(tmp_path / "c.ply"), "-o", str(tmp_path / "s.vtp"), "--keep",
                  "0.3", "--tiles", "2,1,1", "-q"]) == 0
     capsys.readouterr()
@@ -654,20 +660,11 @@ def test_the_reduce_command_in_tiles_on_a_scheduler_address(tmp_path, capsys):
 def test_the_fans_command_in_tiles_carries_a_ply_files_colours(tmp_path, capsys):
     """``fancloud fans cloud.ply -o OUT --tiles``: the colours of a PLY point cloud go into
     the tiles, with no warning; a PLY with faces is warned about (its faces are not read)."""
-    import plyfile
-
     from fancloud_vtk.cli import main
 
     points = sphere(8_000, seed=9)
     rgb = (np.arange(len(points) * 3) % 253).astype(np.uint8).reshape(-1, 3)
-    v = np.empty(len(points), [(c, "f8") for c in "xyz"]
-                 + [(c, "u1") for c in ("red", "green", "blue")])
-    for j, c in enumerate("xyz"):
-        v[c] = points[:, j]
-    for j, c in enumerate(("red", "green", "blue")):
-        v[c] = rgb[:, j]
-    vertex = plyfile.PlyElement.describe(v, "vertex")
-    plyfile.PlyData([vertex]).write(str(tmp_path / "cloud.ply"))
+    write_ply_rgb(tmp_path / "cloud.ply", points, rgb)
     pytest.importorskip("dask.distributed")
     with warnings.catch_warnings():
         warnings.simplefilter("default")
@@ -679,8 +676,5 @@ def test_the_fans_command_in_tiles_carries_a_ply_files_colours(tmp_path, capsys)
     from fancloud_vtk.cli import _ply_has_faces
 
     assert not _ply_has_faces(tmp_path / "cloud.ply")
-    faces = np.empty(1, [("vertex_indices", "i4", (3,))])
-    faces["vertex_indices"] = [[0, 1, 2]]
-    plyfile.PlyData([vertex, plyfile.PlyElement.describe(faces, "face")]).write(
-        str(tmp_path / "mesh.ply"))
+    write_ply_rgb(tmp_path / "mesh.ply", points, rgb, faces=[[0, 1, 2]])
     assert _ply_has_faces(tmp_path / "mesh.ply")
