@@ -404,19 +404,20 @@ def consistent_orientation(triangles, n: int) -> tuple[np.ndarray, int]:
     srt = np.argsort(adj_key, kind="stable")
     adj_key, adj_odd = adj_key[srt], adj_odd[srt]
     flip = np.zeros(m, bool)
-    roots = np.unique(label, return_index=True)[1]  # the first triangle of each piece
-    for root in roots:
-        visit, pred = breadth_first_order(graph, root, directed=False)
-        visit, pred = visit.astype(np.int64), pred.astype(np.int64)  # (int32: keys overflow)
-        if len(visit) < 2:
-            continue
+    f = flip.view(np.uint8)
+    # only the pieces with a disagreement, each on its own subgraph (a breadth-first
+    # search of the whole graph per piece made a mesh of many pieces quadratic)
+    members = np.argsort(label, kind="stable")
+    bounds = np.searchsorted(label[members], np.arange(label.max() + 2))
+    for c in np.unique(label[f0[same]]):
+        idx = members[bounds[c]:bounds[c + 1]]  # increasing: its first triangle is the root
+        visit, pred = breadth_first_order(graph[idx][:, idx], 0, directed=False)
+        visit = idx[visit]
         child = visit[1:]
-        odd = adj_odd[np.searchsorted(adj_key, pred[child] * m + child)]
+        par = idx[pred.astype(np.int64)[np.searchsorted(idx, child)]]
+        odd = adj_odd[np.searchsorted(adj_key, par * m + child)]
         # in breadth-first order a triangle's predecessor comes first
-        parent = pred[child].tolist()
-        step = odd.tolist()
-        f = flip.view(np.uint8)
-        for v, u, o in zip(child.tolist(), parent, step, strict=True):
+        for v, u, o in zip(child.tolist(), par.tolist(), odd.tolist(), strict=True):
             f[v] = f[u] ^ o
         if flip[visit].sum() * 2 > len(visit):  # keep the way most of them ran
             flip[visit] = ~flip[visit]
