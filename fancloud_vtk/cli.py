@@ -237,7 +237,9 @@ def cmd_fans_tiled(args) -> int:
              + f" ({sum(1 for t in tiles if t['file'])} written)"),
             ("points per tile", f"{max(t['owned'] for t in tiles):,} at most"),
             ("halo", f"{min(t['halo'] for t in tiles):.4g} to {max(t['halo'] for t in tiles):.4g}"),
-            ("fans open", f"{n_open:,} ({100 * n_open / max(n, 1):.2f}%)"),
+            ("duplicates merged", f"{index['duplicates_merged']:,}"),
+            ("fans open", f"{n_open:,} "
+             f"({100 * n_open / max(n - index['duplicates_merged'], 1):.2f}%)"),
             ("tiles flipped", f"{sum(t['flipped'] for t in tiles):,}"),
             ("point arrays", ", ".join(index["point_arrays"]) or "none"),
             ("time", f"{elapsed:.2f} s"),
@@ -330,7 +332,6 @@ def cmd_reduce_tiled(args) -> int:
         write_mesh,
         write_vtp,
     )
-    from fancloud_vtk.core.fans import first_of_duplicates
     from fancloud_vtk.distributed import tiled_reduce
     from fancloud_vtk.io import read_point_cloud
 
@@ -352,20 +353,16 @@ def cmd_reduce_tiled(args) -> int:
     # the point arrays go with the kept points; a file's normals are not the fans'
     arrays = {name: arr for name, arr in cloud.point_data.items() if name != "Normals"}
     t_read = time.perf_counter() - t0
-    # duplicates merged as build_fans merges them (the first of each kept), which
-    # tiled_reduce leaves to its caller; original_id then maps to the file's rows
-    first = first_of_duplicates(points, stacklevel=2)
     progress = _Progress("reduce in tiles", args.quiet)
     t0 = time.perf_counter()
-    try:
-        small = tiled_reduce(points[first], n_points=args.n_points, keep=args.keep,
-                             point_data={name: arr[first] for name, arr in arrays.items()},
+    try:  # duplicates merged (the first of each kept): original_id gives the file's rows
+        small = tiled_reduce(points, n_points=args.n_points, keep=args.keep,
+                             point_data=arrays,
                              tiles=args.tiles, tile_points=args.tile_points,
                              scheduler=args.scheduler, workers=args.workers, progress=progress,
                              **{name: values[name] for name in TILED_REDUCE_OPTIONS})
     finally:
         progress.close()
-    small.point_data["original_id"] = first[small.point_data["original_id"]]
     t_reduce = time.perf_counter() - t0
     rows = [("input", f"points, {len(points):,}"),
             ("kept", f"{small.n_points:,} ({100 * small.n_points / len(points):.1f}%)"),

@@ -487,7 +487,8 @@ def write_tiled_fans(
     Returns
     -------
     dict
-        The index (what ``index.json`` holds): ``n_points``, ``bounds``, ``tiles``,
+        The index (what ``index.json`` holds): ``n_points`` (the input's rows),
+        ``duplicates_merged``, ``bounds``, ``tiles``,
         ``parameters``, ``point_arrays`` (the names carried), and per tile its ``file``,
         ``box``, ``halo``, ``owned``, ``built``, ``ghosts``, ``flipped``; ``no_plane``
         (global ids of the points whose fan plane stands in for a normal, which the
@@ -497,8 +498,15 @@ def write_tiled_fans(
     Raises
     ------
     FanCloudInputError
-        Non-finite coordinates (naming the row), duplicate points, too few points, bad
-        ``tiles`` / ``halo`` / ``tile_points``, or an ``outdir`` that already holds one.
+        Non-finite coordinates (naming the row), too few points, bad ``tiles`` / ``halo``
+        / ``tile_points``, or an ``outdir`` that already holds one.
+
+    Warns
+    -----
+    DuplicatePointsWarning
+        Exact duplicate points were merged, as ``build_fans`` merges them: the first of
+        each set kept (the index counts them in ``duplicates_merged``; :func:`read_tiles`
+        gives the kept points the point array ``original_id``, their rows in the input).
     FileReadError
         An unreadable input file.
 
@@ -621,9 +629,16 @@ def write_tiled_fans(
 
     timings["total"] = time.perf_counter() - t_all
     no_plane = np.concatenate([s["no_plane"] for s in summaries]).astype(np.int64)
+    merged = sum(s["merged"] for s in summaries)
+    if merged:
+        warnings.warn(
+            f"{merged} duplicate point(s) merged: the first of each set of identical points "
+            "is kept; read_tiles gives the 'original_id' point array (rows of the input)",
+            _F.DuplicatePointsWarning, stacklevel=2)
     index = {
         "format": "fancloud-vtk tiled fan cloud 1",
         "n_points": int(n),
+        "duplicates_merged": int(merged),
         "bounds": [blo.tolist(), bhi.tolist()],
         "tiles": [int(x) for x in t],
         "parameters": {"k": k, "max_angle": max_angle, "max_replacements": max_replacements,
@@ -651,8 +666,10 @@ def read_tiles(outdir, *, orient: bool = True) -> FanCloud:
 
     Each point's fan comes from the tile that owns it; with ``orient`` (default) the
     normals are then oriented over the whole cloud as ``build_fans`` orients them, so the
-    result is the fan cloud ``build_fans`` gives on the same points (the input's row order);
-    without, each tile's normals are kept as written (agreeing across tiles).
+    result is the fan cloud ``build_fans`` gives on the same points (the input's row order;
+    when the run merged duplicates, the first of each, with the point array
+    ``original_id`` giving their rows in the input, as ``build_fans`` gives it); without,
+    each tile's normals are kept as written (agreeing across tiles).
 
     Raises
     ------
@@ -673,6 +690,7 @@ def read_tiles(outdir, *, orient: bool = True) -> FanCloud:
         with open(path) as fh:
             index = json.load(fh)
         n = int(index["n_points"])
+        merged = int(index.get("duplicates_merged", 0))
         tiles = index["tile_list"]
     except (ValueError, KeyError, TypeError) as exc:
         raise FileReadError(path, f"not a tiled fan cloud index ({exc})") from exc
@@ -716,17 +734,31 @@ def read_tiles(outdir, *, orient: bool = True) -> FanCloud:
                 carried[name] = np.zeros((n, *arr.shape[1:]), arr.dtype)
             carried[name][ids] = arr[:own]
         parts.append((ids, s, gid[fc.ring[: fc.offsets[own]]]))
-    if not seen.all():
-        raise FileReadError(path, f"{int((~seen).sum()):,} point(s) in no tile file")
-    offsets = np.zeros(n + 1, np.int64)
+    if int(seen.sum()) != n - merged:
+        raise FileReadError(path, f"{int(n - merged - seen.sum()):,} point(s) in no tile file")
+    no_plane = np.zeros(n, bool)
+    no_plane[np.asarray(index.get("no_plane", []), np.int64)] = True
+    rank = None
+    if merged:  # the points kept: the input's rows renumbered, as build_fans merges them
+        kept = np.flatnonzero(seen)
+        rank = np.full(n, -1, np.int64)
+        rank[kept] = np.arange(len(kept))
+        points, normals, sizes = points[kept], normals[kept], sizes[kept]
+        is_open, rotated, turned, no_plane = (is_open[kept], rotated[kept], turned[kept],
+                                              no_plane[kept])
+        carried = {name: arr[kept] for name, arr in carried.items()}
+        carried["original_id"] = kept
+    offsets = np.zeros(len(points) + 1, np.int64)
     np.cumsum(sizes, out=offsets[1:])
     ring = np.empty(offsets[-1], np.int64)
     for ids, s, r in parts:
+        if rank is not None:
+            ids, r = rank[ids], rank[r]
         dst = _positions(offsets[ids], s)
         ring[dst] = r
     p = index.get("parameters", {})
     info = {**p, "fans_open": int(is_open.sum()), "fans_rotated": int(rotated.sum()),
-            "duplicates_merged": 0, "tiles": tuple(index.get("tiles", ()))}
+            "duplicates_merged": merged, "tiles": tuple(index.get("tiles", ()))}
     fc = FanCloud(points, offsets, ring, normals, is_open, rotated, carried, info)
     if orient:  # the fans as built (the orientation's result depends on them), oriented
         normals[turned] *= -1.0
@@ -735,8 +767,6 @@ def read_tiles(outdir, *, orient: bool = True) -> FanCloud:
         start = np.repeat(offsets[:-1], sizes_t)[at]
         end = np.repeat(offsets[1:], sizes_t)[at]
         ring[at] = ring[start + end - 1 - at]
-        no_plane = np.zeros(n, bool)
-        no_plane[np.asarray(index.get("no_plane", []), np.int64)] = True
         fc = _F._orient_fans(fc, no_plane)
     return fc
 
@@ -955,18 +985,31 @@ def _file_tile(work, i, lo, hi, width, blo, bhi, t, number, options, outdir, n, 
     ids = np.fromfile(os.path.join(work, f"tile_{i:05d}.ids"), np.int64)
     carried = {name: np.fromfile(os.path.join(work, f"tile_{i:05d}.a{j}"), np.dtype(dt))
                .reshape((len(sub), *shape)) for j, (name, dt, shape) in enumerate(schema)}
+    rows = len(sub)  # the rows read: with duplicates, more than the points kept
     grid = _F.Grid(sub)
-    if grid.n_dup:
-        raise FanCloudInputError(f"duplicate points (at least {grid.n_dup:,} in tile {i}): "
-                                 "write_tiled_fans needs distinct points; merge them first")
     own_mask = _owner(sub, blo, bhi, t, number) == i
+    merged = 0
+    if grid.n_dup:
+        # the copies of a point fall in the same tiles (its owner's and the same halos):
+        # the tile keeps the first (lowest global id) of each, as build_fans keeps it
+        keep = _first_rows(sub, ids)
+        merged = int(own_mask.sum() - own_mask[keep].sum())
+        sub, ids, own_mask = sub[keep], ids[keep], own_mask[keep]
+        carried = {name: arr[keep] for name, arr in carried.items()}
+        grid = _F.Grid(sub)
     own_loc = np.flatnonzero(own_mask)
     k, max_angle, max_replacements, rule, rule_id, rotate, reach, sheets = options
+    if len(sub) < k + 1:  # too few distinct points to make fans: a wider halo
+        if rows < n:
+            return {"tile": i, "built": rows, "owned": len(own_loc),
+                    "needed": max(2.0 * width, float((hi - lo).max()))}
+        _F._check_size(len(sub), k)
     fc, no_plane = _F._fans(sub, k, max_angle, max_replacements, rule, rule_id, rotate, reach,
                             sheets, None, False, {}, 1, None)
     needed = _halo_needed(sub, fc, own_loc, lo, hi, width, blo, bhi, k)
-    summary = {"tile": i, "built": len(sub), "owned": len(own_loc), "needed": needed}
-    if needed > width and len(sub) < n:
+    summary = {"tile": i, "built": rows, "owned": len(own_loc), "needed": needed,
+               "merged": merged}
+    if needed > width and rows < n:
         return summary  # the caller sorts the tile again with a wider halo
     built = fc.normals
     fc = _F._orient_fans(fc, no_plane, grid)
@@ -1005,6 +1048,14 @@ def _file_tile(work, i, lo, hi, width, blo, bhi, t, number, options, outdir, n, 
     return summary
 
 
+def _first_rows(sub, ids) -> np.ndarray:
+    """The rows of ``sub`` left when exact duplicates are merged: of each set of identical
+    points the one with the lowest global id (``ids``), in the rows' order."""
+    order = np.argsort(ids, kind="stable")
+    _, first = np.unique(sub[order], axis=0, return_index=True)
+    return np.sort(order[first])
+
+
 def _halo_needed(sub, fc, loc, lo, hi, width, blo, bhi, k) -> float:
     """The halo width the owned fans ``loc`` (rows of ``sub``, the tile's box ``lo``,
     ``hi`` grown by ``width``) need, 0 when ``width`` is enough. The radius each fan looked
@@ -1041,7 +1092,8 @@ def _sampled(ids) -> np.ndarray:
 
 
 def _empty_summary(i, lo, hi, width) -> dict:
-    return {"tile": i, "built": 0, "owned": 0, "needed": 0.0, "file": "", "ghosts": 0,
+    return {"tile": i, "built": 0, "owned": 0, "needed": 0.0, "merged": 0, "file": "",
+            "ghosts": 0,
             "open": 0, "no_plane": np.empty(0, np.int64), "seconds": 0.0, "peak_mb": 0.0,
             "own_sample": (np.empty(0, np.int64), np.empty((0, 3))),
             "halo_sample": (np.empty(0, np.int64), np.empty((0, 3)))}
@@ -1244,9 +1296,10 @@ def tiled_reduce(
     Parameters
     ----------
     points : array_like, shape (n, 3)
-        The points (distinct).
+        The points. Exact duplicates are merged as ``build_fans`` merges them (the first
+        of each kept, a ``DuplicatePointsWarning``) before the blocks run.
     n_points, keep
-        The target, as in :func:`fancloud_vtk.reduce`.
+        The target, as in :func:`fancloud_vtk.reduce` (``keep`` of the distinct points).
     k : int, default: 6
         Neighbours per fan.
     tiles : "auto" or tuple of 3 int, default: (2, 2, 2)
@@ -1280,7 +1333,7 @@ def tiled_reduce(
         The reduced fan cloud (exactly the target's points), with the kept rows of
         ``point_data`` and the point array ``original_id`` (rows of ``points``); ``info``
         adds ``tiles``, ``halo``, ``fans_rebuilt`` (the fans built again along the blocks'
-        faces) and ``timings``.
+        faces), ``duplicates_merged`` and ``timings``.
 
     Examples
     --------
@@ -1311,17 +1364,23 @@ def tiled_reduce(
     data = _carried(check_point_data(point_data, n), stacklevel=3)
     _F._check_size(n, k)
     check_spread(pts)
+    if _F.Grid(pts).n_dup:  # merged as build_fans merges them: the first of each kept
+        first = _F.first_of_duplicates(pts, stacklevel=2)
+        fc = tiled_reduce(
+            pts[first], n_points, keep, k=k, tiles=tiles, halo=halo, scheduler=scheduler,
+            workers=workers, tile_points=tile_points, weights=weights, method=method,
+            max_spacing=max_spacing, error_step=error_step, point_data={
+                name: arr[first] for name, arr in data.items()},
+            progress=progress, **fan_options)
+        fc.point_data["original_id"] = first[fc.point_data["original_id"]]
+        fc.info["duplicates_merged"] = n - len(first)
+        return fc
     target = target_count(n, n_points, keep)
     if isinstance(tiles, str) and tiles == "auto":
         t = _auto_tiles(n, pts.min(axis=0), pts.max(axis=0), tile_points)
     else:
         t = _check_tiles(tiles)
     width = _auto_halo(pts, k) if halo is None else _check_halo(halo)
-    n_dup = _F.Grid(pts).n_dup
-    if n_dup:
-        raise FanCloudInputError(f"{n_dup:,} duplicate point(s): tiled_reduce needs distinct "
-                                 "points (merge them first, e.g. with numpy.unique(points, "
-                                 "axis=0))")
     t_all = time.perf_counter()
     lo, hi, owner = tile_boxes(pts, t)
     counts = np.bincount(owner, minlength=len(lo))
@@ -1400,6 +1459,7 @@ def tiled_reduce(
     timings["stitch"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
     fc.info.update({"k": k, "tiles": tuple(int(x) for x in t), "halo": width,
+                    "duplicates_merged": 0,
                     "fans_rebuilt": int(bad.sum()), "fans_open": int(fc.open.sum()),
                     "timings": timings})
     report(1.0, "done")

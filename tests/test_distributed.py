@@ -241,6 +241,38 @@ def test_duplicates_are_merged_as_build_fans_merges_them():
         np.testing.assert_array_equal(fc.point_data[name], one.point_data[name])
 
 
+def test_duplicates_out_of_core_are_merged_as_build_fans_merges_them(tmp_path):
+    """A PLY with copies of points read in other chunks (as a LAS file's rounding makes
+    them), some in tile halos, one tile owning only copies of two points: the tiles merge
+    them (the first row of each kept, with its colours), with build_fans' warning, and
+    read_tiles gives build_fans' fan cloud, its original_id included."""
+    from fancloud_vtk import DuplicatePointsWarning
+    from fancloud_vtk.io import read_point_cloud
+
+    rng = np.random.default_rng(7)
+    points = sphere(6_000, seed=7)
+    copies = rng.integers(0, len(points), 300)
+    corner = np.array([[3.0, 3.0, 3.0], [3.0, 3.0, 3.01]])  # alone in its tile
+    rows = np.vstack([points, points[copies], corner, corner, corner])
+    rows = rows[rng.permutation(len(rows))]
+    rgb = (np.arange(len(rows))[:, None] * [1, 7, 13] % 256).astype(np.uint8)
+    write_ply_rgb(tmp_path / "c.ply", rows, rgb)
+    cloud = read_point_cloud(tmp_path / "c.ply")
+    merged = len(rows) - len(np.unique(rows, axis=0))
+    with pytest.warns(DuplicatePointsWarning, match=f"{merged} duplicate point"):
+        one = build_fans(cloud.points, point_data=cloud.point_data)
+    with pytest.warns(DuplicatePointsWarning, match=f"{merged} duplicate point"):
+        index = D.write_tiled_fans(tmp_path / "c.ply", tmp_path / "out", tiles=(2, 2, 1),
+                                   scheduler="sync", chunk=1_000)
+    assert index["n_points"] == len(rows) and index["duplicates_merged"] == merged
+    fc = D.read_tiles(tmp_path / "out")
+    assert same(fc, one) and np.array_equal(fc.points, one.points)
+    assert fc.info["duplicates_merged"] == merged
+    assert sorted(fc.point_data) == sorted(one.point_data)
+    for name, arr in one.point_data.items():
+        np.testing.assert_array_equal(fc.point_data[name], arr)
+
+
 def test_nan_and_bad_scheduler_are_refused():
     points = sphere(1000)
     bad = points.copy()
@@ -442,9 +474,9 @@ def test_bad_chunked_input_is_refused(tmp_path):
         list(read_point_chunks(tmp_path / "missing.npy"))
     with pytest.raises(ValueError, match="chunk"):
         list(read_point_chunks(tmp_path / "nan.npy", chunk=0))
-    dup = np.concatenate([points, points[:10]])
-    with pytest.raises(FanCloudInputError, match="duplicate"):
-        D.write_tiled_fans(dup, tmp_path / "dup", tiles=(2, 1, 1), scheduler="sync")
+    few = np.repeat(points[:4], 50, axis=0)  # 200 rows, 4 distinct points
+    with pytest.raises(FanCloudInputError, match="k \\+ 1 = 7 distinct points, got 4"):
+        D.write_tiled_fans(few, tmp_path / "few", tiles=(2, 1, 1), scheduler="sync")
     done = D.write_tiled_fans(points, tmp_path / "ok", tiles=(1, 1, 2), scheduler="sync")
     assert done["n_points"] == len(points)
     with pytest.raises(FanCloudInputError, match="already holds"):
@@ -591,10 +623,28 @@ def test_blocked_reduction_passes_the_kept_points_arrays_through(tmp_path, capsy
                                   rgb[small.point_data["original_id"]])
 
 
+def test_blocked_reduction_merges_duplicates_as_build_fans_does():
+    """Copies of points: merged first (the first of each kept, build_fans' warning), so
+    the result is that of the distinct points, its original_id the input's rows."""
+    points, _ = torus(5_000, seed=2)
+    ref = tiled_reduce(points, keep=0.3, tiles=(2, 1, 1), scheduler="sync")
+    rows = np.concatenate([points[:2_000], points[[5, 9, 5]], points[2_000:]])
+    with pytest.warns(D._F.DuplicatePointsWarning, match="3 duplicate point"):
+        fc = tiled_reduce(rows, keep=0.3, tiles=(2, 1, 1), scheduler="sync",
+                          point_data={"row": np.arange(len(rows))})
+    assert same(fc, ref) and fc.info["duplicates_merged"] == 3
+    back = np.where(ref.point_data["original_id"] < 2_000, ref.point_data["original_id"],
+                    ref.point_data["original_id"] + 3)
+    np.testing.assert_array_equal(fc.point_data["original_id"], back)
+    np.testing.assert_array_equal(fc.point_data["row"], back)
+
+
 def test_blocked_reduction_refuses_bad_input():
     points, _ = torus(5_000)
-    with pytest.raises(FanCloudInputError, match="duplicate"):
-        tiled_reduce(np.concatenate([points, points[:3]]), keep=0.5, scheduler="sync")
+    few = np.repeat(points[:3], 4, axis=0)
+    with pytest.raises(FanCloudInputError, match="distinct points, got 3"):
+        with pytest.warns(D._F.DuplicatePointsWarning):
+            tiled_reduce(few, keep=0.5, scheduler="sync")
     with pytest.raises(ValueError):
         tiled_reduce(points, keep=1.5, scheduler="sync")
     with pytest.raises(FanCloudInputError):

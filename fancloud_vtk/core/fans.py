@@ -388,7 +388,8 @@ class Grid:
 
     def __init__(self, pts: np.ndarray):
         self.lo, hi = G.bounds(pts)
-        extent = float((hi - self.lo).max())
+        # (all one point: a tile of copies of one point, whose duplicates it counts)
+        extent = float((hi - self.lo).max()) or 1.0
         self.h = G.cell_size(pts, self.lo, extent, self.TARGET_OCCUPANCY)
         (self.order, self.start, self.cell_xyz, self.table,
          self.n_dup) = G.build_grid(pts, self.lo, 1.0 / self.h,
