@@ -322,7 +322,8 @@ TILED_REDUCE_OPTIONS = ("k", "max_angle", "max_replacements", "rule", "rotate_sh
 
 def cmd_reduce_tiled(args) -> int:
     """``fancloud reduce BIG -o OUT --keep F --tiles ...``: the reduction in blocks on Dask
-    (:func:`fancloud_vtk.distributed.tiled_reduce`, in memory), written as one fan cloud
+    (:func:`fancloud_vtk.distributed.tiled_reduce`, the file read in chunks and sorted into
+    the blocks' files), written as one fan cloud
     (or, with ``--mesh``, its mesh made in this process)."""
     from fancloud_vtk import fan_cloud_to_mesh
     from fancloud_vtk.algorithms.convert import (
@@ -333,7 +334,6 @@ def cmd_reduce_tiled(args) -> int:
         write_vtp,
     )
     from fancloud_vtk.distributed import tiled_reduce
-    from fancloud_vtk.io import read_point_cloud
 
     _check_output(args.output, MESH_FORMATS if args.mesh else ".vtp")
     _check_scheduler(args)
@@ -343,33 +343,29 @@ def cmd_reduce_tiled(args) -> int:
                 and values[p.name] != p.default:
             raise ValueError(f"--{p.name.replace('_', '-')} does not go with --tiles (the "
                              f"blocks reduce points: {', '.join(TILED_REDUCE_OPTIONS)})")
-    t0 = time.perf_counter()
-    cloud = read_point_cloud(args.input)
-    points = cloud.points
-    if cloud.faces is not None:
+    if args.input.lower().endswith((".obj", ".vtp", ".vtk", ".vtu", ".stl")) \
+            or args.input.lower().endswith(".ply") and _ply_has_faces(args.input):
         warnings.warn(f"{os.path.basename(args.input)}: with --tiles the points are "
                       "reduced, not the mesh (its faces are left out): vertices that no face "
                       "uses are kept", UserWarning, stacklevel=2)
-    # the point arrays go with the kept points; a file's normals are not the fans'
-    arrays = {name: arr for name, arr in cloud.point_data.items() if name != "Normals"}
-    t_read = time.perf_counter() - t0
     progress = _Progress("reduce in tiles", args.quiet)
     t0 = time.perf_counter()
-    try:  # duplicates merged (the first of each kept): original_id gives the file's rows
-        small = tiled_reduce(points, n_points=args.n_points, keep=args.keep,
-                             point_data=arrays,
+    try:  # the file read in chunks; duplicates merged (the first of each kept): original_id
+        # gives the file's rows; the file's point arrays go with the kept points
+        small = tiled_reduce(args.input, n_points=args.n_points, keep=args.keep,
                              tiles=args.tiles, tile_points=args.tile_points,
                              scheduler=args.scheduler, workers=args.workers, progress=progress,
                              **{name: values[name] for name in TILED_REDUCE_OPTIONS})
     finally:
         progress.close()
     t_reduce = time.perf_counter() - t0
-    rows = [("input", f"points, {len(points):,}"),
-            ("kept", f"{small.n_points:,} ({100 * small.n_points / len(points):.1f}%)"),
+    n = small.info["input_points"]
+    rows = [("input", f"points, {n:,}"),
+            ("kept", f"{small.n_points:,} ({100 * small.n_points / n:.1f}%)"),
             ("weights", str(tuple(args.weights))), ("method", args.method),
             ("tiles", "x".join(str(v) for v in small.info["tiles"])),
             ("fans built again", f"{small.info['fans_rebuilt']:,}"),
-            ("time: read", f"{t_read:.2f} s"), ("time: reduction in tiles", f"{t_reduce:.2f} s")]
+            ("time: reduction in tiles (read included)", f"{t_reduce:.2f} s")]
     if args.mesh:
         mesh = fan_cloud_to_mesh(small)
         write_mesh(mesh_to_vtk(mesh), args.output)

@@ -1279,6 +1279,7 @@ def tiled_reduce(
     reach: float = 5.0,
     separate_sheets: bool = False,
     point_data=None,
+    chunk: int = 1_000_000,
     progress=None,
 ) -> FanCloud:
     """The reduction of a point cloud in blocks, as Dask tasks (the paper's §8 blocks).
@@ -1295,9 +1296,14 @@ def tiled_reduce(
 
     Parameters
     ----------
-    points : array_like, shape (n, 3)
-        The points. Exact duplicates are merged as ``build_fans`` merges them (the first
-        of each kept, a ``DuplicatePointsWarning``) before the blocks run.
+    points : array_like, shape (n, 3), or str or os.PathLike
+        The points, or a point file read in chunks (out of core: ``.npy``, ``.ply``,
+        ``.las``, ``.laz``; other formats whole, see
+        :func:`fancloud_vtk.io.read_point_chunks`), its points sorted into the blocks'
+        files (in a temporary folder) as :func:`write_tiled_fans` sorts them, each block a
+        task that reads its own; only the kept points are put together here. Exact
+        duplicates are merged as ``build_fans`` merges them (the first of each kept, a
+        ``DuplicatePointsWarning``).
     n_points, keep
         The target, as in :func:`fancloud_vtk.reduce` (``keep`` of the distinct points).
     k : int, default: 6
@@ -1306,7 +1312,8 @@ def tiled_reduce(
         Blocks along x, y and z; ``"auto"``: about ``n / tile_points`` blocks, each cut
         across the longest side (as :func:`write_tiled_fans`).
     halo : float, optional
-        The blocks' halo (default: the default halo of :func:`tiled_fans`).
+        The blocks' halo (default: the default halo of :func:`tiled_fans`; for a file, of
+        :func:`write_tiled_fans`, from a sample of the points).
     scheduler : None, str or dask.distributed.Client, default: "threads"
         As in :func:`tiled_fans`; ``None``: a ``LocalCluster`` of ``workers``
         single-threaded worker processes (as :func:`write_tiled_fans`), closed at the end.
@@ -1319,10 +1326,13 @@ def tiled_reduce(
     max_angle, max_replacements, rule, rotate_sharp_edges, reach, separate_sheets
         The fans' parameters, as in :func:`fancloud_vtk.build_fans` (the blocks' fans and
         the fans built again along their faces).
-    point_data : dict, optional
+    point_data : dict or bool, optional
         Arrays with one row per point: the kept points' rows are passed through (one
         named as the fan cloud's own, ``Normals``, ``fan_open``, ``fan_rotated``, is
-        dropped with a ``DroppedArrayWarning``).
+        dropped with a ``DroppedArrayWarning``). For a file: None or True (default) its
+        own arrays, as :func:`fancloud_vtk.io.read_point_chunks` reads them; False none.
+    chunk : int, default: 1_000_000
+        For a file: the points read at a time.
     progress : callable, optional
         ``progress(fraction, message)`` after each block (``fancloud reduce --tiles``
         draws its bar from it).
@@ -1333,7 +1343,7 @@ def tiled_reduce(
         The reduced fan cloud (exactly the target's points), with the kept rows of
         ``point_data`` and the point array ``original_id`` (rows of ``points``); ``info``
         adds ``tiles``, ``halo``, ``fans_rebuilt`` (the fans built again along the blocks'
-        faces), ``duplicates_merged`` and ``timings``.
+        faces), ``input_points``, ``duplicates_merged`` and ``timings``.
 
     Examples
     --------
@@ -1350,6 +1360,8 @@ def tiled_reduce(
     except ImportError as exc:  # pragma: no cover - the test extra installs it
         raise ImportError('tiled_reduce needs Dask: pip install "fancloud-vtk[distributed]"') \
             from exc
+    import os
+
     from .core.reduction import target_count
 
     k = _check_fan_options(k, max_angle, max_replacements, rule, reach,
@@ -1359,6 +1371,11 @@ def tiled_reduce(
                    "rotate_sharp_edges": rotate_sharp_edges, "reach": reach,
                    "separate_sheets": separate_sheets}
     tile_points = _check_tile_points(tile_points)
+    if isinstance(points, str | bytes | os.PathLike):  # out of core: read in chunks
+        return _reduce_file(
+            dask, points, n_points, keep, k, tiles, halo, scheduler, workers, tile_points,
+            (k, tuple(float(x) for x in weights), method, max_spacing, error_step,
+             fan_options), fan_options, point_data, chunk, progress)
     pts = as_points(points)
     n = len(pts)
     data = _carried(check_point_data(point_data, n), stacklevel=3)
@@ -1373,7 +1390,7 @@ def tiled_reduce(
                 name: arr[first] for name, arr in data.items()},
             progress=progress, **fan_options)
         fc.point_data["original_id"] = first[fc.point_data["original_id"]]
-        fc.info["duplicates_merged"] = n - len(first)
+        fc.info.update({"input_points": n, "duplicates_merged": n - len(first)})
         return fc
     target = target_count(n, n_points, keep)
     if isinstance(tiles, str) and tiles == "auto":
@@ -1383,11 +1400,7 @@ def tiled_reduce(
     width = _auto_halo(pts, k) if halo is None else _check_halo(halo)
     t_all = time.perf_counter()
     lo, hi, owner = tile_boxes(pts, t)
-    counts = np.bincount(owner, minlength=len(lo))
-    exact = counts * (target / n)
-    share = np.floor(exact).astype(np.int64)
-    extra = target - int(share.sum())
-    share[np.argsort(-(exact - share), kind="stable")[:extra]] += 1
+    share = _shares(np.bincount(owner, minlength=len(lo)), target)
     options = (k, tuple(float(x) for x in weights), method, max_spacing, error_step,
                fan_options)
     jobs = []
@@ -1411,31 +1424,52 @@ def tiled_reduce(
     timings = {"blocks": time.perf_counter() - t0}
     report(0.9, "stitch the blocks")
 
-    # stitch: the kept points in input order, each with its block's fan where every ring
-    # member was kept; the others built again over the kept points
     t0 = time.perf_counter()
-    kept = np.sort(np.concatenate([part[0] for part in parts]))
+    fc = _stitch_blocks(parts, k, fan_options, data)
+    timings["stitch"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_all
+    fc.info.update({"k": k, "tiles": tuple(int(x) for x in t), "halo": width,
+                    "input_points": n, "duplicates_merged": 0,
+                    "fans_rebuilt": fc.info["fans_rebuilt"],
+                    "fans_open": int(fc.open.sum()), "timings": timings})
+    report(1.0, "done")
+    return fc
+
+
+def _stitch_blocks(parts, k, fan_options, data=None) -> FanCloud:
+    """The blocks' kept points in input order, each with its block's fan where every ring
+    member was kept; the others built again over the kept points; the normals oriented
+    over the result. ``parts``: the blocks' (global ids, fan sizes, rings in global ids,
+    normals, open flags, coordinates, point arrays); ``data``: the input's point arrays
+    (whole; None: those the blocks give)."""
+    ids_all = np.concatenate([part[0] for part in parts])
+    order = np.argsort(ids_all, kind="stable")
+    kept = ids_all[order]
     m = len(kept)
-    where = np.full(n, -1, np.int64)
-    where[kept] = np.arange(m)
+
+    def where(g):  # rows of the kept points, -1 for points removed
+        pos = np.minimum(np.searchsorted(kept, g), max(m - 1, 0))
+        return np.where(kept[pos] == g, pos, -1) if m else np.full(len(g), -1, np.int64)
+
     sizes = np.zeros(m, np.int64)
     normals = np.zeros((m, 3))
     is_open = np.zeros(m, bool)
-    for ids, s, _, nrm, op in parts:
-        sizes[where[ids]] = s
-        normals[where[ids]] = nrm
-        is_open[where[ids]] = op
+    sub = np.concatenate([part[5] for part in parts])[order]
+    for ids, s, _, nrm, op, _, _ in parts:
+        at = where(ids)
+        sizes[at] = s
+        normals[at] = nrm
+        is_open[at] = op
     offsets = np.zeros(m + 1, np.int64)
     np.cumsum(sizes, out=offsets[1:])
     ring = np.empty(offsets[-1], np.int64)
-    for ids, s, r, _, _ in parts:
-        dst = _positions(offsets[where[ids]], s)
-        ring[dst] = where[r]
+    for ids, s, r, _, _, _, _ in parts:
+        dst = _positions(offsets[where(ids)], s)
+        ring[dst] = where(r)
     bad = np.zeros(m, bool)
     if len(ring):
         owner_of_entry = np.repeat(np.arange(m), sizes)
         bad[owner_of_entry[ring < 0]] = True
-    sub = pts[kept]
     if bad.any():
         fresh = _F.build_fans(sub, k, orient=False, **fan_options)
         fsz = np.diff(fresh.offsets)
@@ -1453,20 +1487,129 @@ def tiled_reduce(
         ring[~from_fresh] = old_ring[take[~from_fresh]]
     fc = FanCloud(sub, offsets, ring, normals, is_open, np.zeros(m, bool), {}, {})
     fc = _F._orient_fans(fc, np.zeros(m, bool))
-    for name, arr in data.items():
-        fc.point_data[name] = arr[kept]
+    if data is not None:
+        for name, arr in data.items():
+            fc.point_data[name] = arr[kept]
+    elif parts:
+        for name in parts[0][6]:
+            fc.point_data[name] = np.concatenate([part[6][name] for part in parts])[order]
     fc.point_data["original_id"] = kept
+    fc.info["fans_rebuilt"] = int(bad.sum())
+    return fc
+
+
+def _reduce_file(dask, path, n_points, keep, k, tiles, halo, scheduler, workers, tile_points,
+                 options, fan_options, point_data, chunk, progress) -> FanCloud:
+    """tiled_reduce of a point file read in chunks: its points sorted into the blocks'
+    files (as write_tiled_fans sorts them), each block a task reading its own, the result
+    (the kept points) put together in this process."""
+    import shutil
+    import tempfile
+
+    from .core.reduction import target_count
+
+    if point_data is not None and not isinstance(point_data, bool | np.bool_):
+        raise FanCloudInputError("point_data arrays go with an array source; a file brings "
+                                 "its own (point_data=True or False)")
+    chunks = _chunk_source(path, chunk, point_data)
+    report = progress if progress is not None else (lambda f, m: None)
+    t_all = time.perf_counter()
+    timings = {}
+    t0 = time.perf_counter()
+    report(0.0, "scan the input")
+    n, blo, bhi, sample, schema = _scan(chunks())
+    _F._check_size(n, k)
+    check_spread(sample)
+    if isinstance(tiles, str) and tiles == "auto":
+        t = _auto_tiles(n, blo, bhi, tile_points)
+    else:
+        t = _check_tiles(tiles)
+    width = _auto_halo_sample(sample, n, k) if halo is None else _check_halo(halo)
+    lo, hi, number = _box_grid(blo, bhi, t)
+    m = len(lo)
+    timings["scan"] = time.perf_counter() - t0
+    work = tempfile.mkdtemp(prefix="fancloud-reduce-")
+    client, close = _client_for(scheduler, workers)
+    try:
+        t0 = time.perf_counter()
+        report(0.02, f"sort the points into {m} block(s)")
+        counts = _bucket(chunks(), work, list(range(m)), lo, hi, np.full(m, width), blo, bhi,
+                         t, number, schema)
+        timings["sort"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        todo = [i for i in range(m) if counts[i][0]]
+        jobs = [(work, i, blo, bhi, t, number, schema) for i in todo]
+        own = dict(_map_tasks(dask, client, scheduler, _file_block_size, jobs, None))
+        distinct = np.array([own.get(i, 0) for i in range(m)], np.int64)
+        n_distinct = int(distinct.sum())
+        if n_distinct < n:
+            warnings.warn(
+                f"{n - n_distinct} duplicate point(s) merged: the first of each set of "
+                "identical points is kept; the 'original_id' point array maps the result to "
+                "the input", _F.DuplicatePointsWarning, stacklevel=3)
+        _F._check_size(n_distinct, k)
+        share = _shares(distinct, target_count(n_distinct, n_points, keep))
+        jobs = [(work, i, blo, bhi, t, number, schema, int(share[i]), options) for i in todo]
+        report(0.05, f"reduce {len(jobs)} block(s)")
+        parts = list(_map_tasks(dask, client, scheduler, _file_block, jobs,
+                                lambda j: report(0.05 + 0.85 * j / len(jobs),
+                                                 f"{j} of {len(jobs)} block(s) reduced")))
+        timings["blocks"] = time.perf_counter() - t0
+    finally:
+        if close is not None:
+            close()
+        shutil.rmtree(work, ignore_errors=True)
+    report(0.9, "stitch the blocks")
+    t0 = time.perf_counter()
+    fc = _stitch_blocks(parts, k, fan_options)
     timings["stitch"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_all
     fc.info.update({"k": k, "tiles": tuple(int(x) for x in t), "halo": width,
-                    "duplicates_merged": 0,
-                    "fans_rebuilt": int(bad.sum()), "fans_open": int(fc.open.sum()),
-                    "timings": timings})
+                    "input_points": n, "duplicates_merged": n - n_distinct,
+                    "fans_rebuilt": fc.info["fans_rebuilt"],
+                    "fans_open": int(fc.open.sum()), "timings": timings})
     report(1.0, "done")
     return fc
 
 
-def _block(sub, ids, own, share, options):
+def _shares(counts, target) -> np.ndarray:
+    """The target split over the blocks by their points, largest remainders first (the
+    shares sum to it exactly)."""
+    exact = counts * (target / max(int(counts.sum()), 1))
+    share = np.floor(exact).astype(np.int64)
+    extra = target - int(share.sum())
+    share[np.argsort(-(exact - share), kind="stable")[:extra]] += 1
+    return share
+
+
+def _read_block(work, i, blo, bhi, t, number, schema):
+    """A block's points from its files: (coordinates, global ids, point arrays, own mask),
+    duplicates merged (the lowest id of each kept)."""
+    import os
+
+    sub = np.fromfile(os.path.join(work, f"tile_{i:05d}.xyz"), np.float64).reshape(-1, 3)
+    ids = np.fromfile(os.path.join(work, f"tile_{i:05d}.ids"), np.int64)
+    carried = {name: np.fromfile(os.path.join(work, f"tile_{i:05d}.a{j}"), np.dtype(dt))
+               .reshape((len(sub), *shape)) for j, (name, dt, shape) in enumerate(schema)}
+    if _F.Grid(sub).n_dup:
+        keep = _first_rows(sub, ids)
+        sub, ids = sub[keep], ids[keep]
+        carried = {name: arr[keep] for name, arr in carried.items()}
+    return sub, ids, carried, _owner(sub, blo, bhi, t, number) == i
+
+
+def _file_block_size(work, i, blo, bhi, t, number, schema):
+    """(block, its own distinct points)."""
+    return i, int(_read_block(work, i, blo, bhi, t, number, schema)[3].sum())
+
+
+def _file_block(work, i, blo, bhi, t, number, schema, share, options):
+    """One block's task of an out-of-core reduction: _block on the block's files."""
+    sub, ids, carried, own = _read_block(work, i, blo, bhi, t, number, schema)
+    return _block(sub, ids, ids[own], share, options, carried)
+
+
+def _block(sub, ids, own, share, options, carried=None):
     """One block's task: the block's kept own points (global ids, sorted), their fan sizes,
     rings (global ids), normals and open flags."""
     from .core.reduction import reduce as _reduce
@@ -1495,6 +1638,8 @@ def _block(sub, ids, own, share, options):
     sizes = np.diff(level.offsets)[mine]
     take = _positions(level.offsets[mine], sizes)
     ring = ids[loc[level.ring[take]]]
-    return ids[loc[mine]], sizes, ring, level.normals[mine], level.open[mine]
+    rows = loc[mine]
+    return (ids[rows], sizes, ring, level.normals[mine], level.open[mine], sub[rows],
+            {name: arr[rows] for name, arr in (carried or {}).items()})
 
 

@@ -639,6 +639,42 @@ def test_blocked_reduction_merges_duplicates_as_build_fans_does():
     np.testing.assert_array_equal(fc.point_data["row"], back)
 
 
+def test_blocked_reduction_of_a_file_read_in_chunks_is_that_of_the_array(tmp_path):
+    """tiled_reduce(path): the points read in chunks and sorted into the blocks' files, the
+    same kept points, fans and normals as tiled_reduce of the array (at the same halo); a
+    LAS file's arrays go with the kept points, and its copies of points (the rounding of
+    its coordinates makes them) are merged as build_fans merges them."""
+    from fancloud_vtk import DuplicatePointsWarning
+    from fancloud_vtk.io import read_point_cloud
+
+    points, _ = torus(8_000, seed=5)
+    np.save(tmp_path / "t.npy", points)
+    width = D._auto_halo(points, 6)
+    ref = tiled_reduce(points, keep=0.25, tiles=(2, 2, 1), scheduler="sync", halo=width)
+    fc = tiled_reduce(tmp_path / "t.npy", keep=0.25, tiles=(2, 2, 1), scheduler="sync",
+                      halo=width, chunk=1_500)
+    assert same(fc, ref) and np.array_equal(fc.points, ref.points)
+    np.testing.assert_array_equal(fc.point_data["original_id"], ref.point_data["original_id"])
+    assert fc.info["input_points"] == len(points) and fc.info["duplicates_merged"] == 0
+
+    rows = np.vstack([points, points[:40]])
+    write_las(tmp_path / "t.las", rows)
+    cloud = read_point_cloud(tmp_path / "t.las")  # its points as the file stores them
+    with pytest.warns(DuplicatePointsWarning) as record:
+        ref = tiled_reduce(cloud.points, keep=0.25, tiles=(2, 2, 1), scheduler="sync",
+                           halo=width, point_data=cloud.point_data)
+    with pytest.warns(DuplicatePointsWarning) as again:
+        fc = tiled_reduce(tmp_path / "t.las", keep=0.25, tiles=(2, 2, 1), scheduler="sync",
+                          halo=width, chunk=2_000)
+    assert str(record[0].message) == str(again[0].message)
+    assert fc.info["duplicates_merged"] == ref.info["duplicates_merged"] >= 40
+    assert same(fc, ref) and sorted(fc.point_data) == sorted(ref.point_data)
+    for name, arr in ref.point_data.items():
+        np.testing.assert_array_equal(fc.point_data[name], arr)
+    with pytest.raises(FanCloudInputError, match="array source"):
+        tiled_reduce(tmp_path / "t.las", keep=0.5, point_data={"a": np.zeros(3)})
+
+
 def test_blocked_reduction_refuses_bad_input():
     points, _ = torus(5_000)
     few = np.repeat(points[:3], 4, axis=0)
