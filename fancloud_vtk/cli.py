@@ -699,8 +699,9 @@ def make_parser() -> argparse.ArgumentParser:
     amount.add_argument("--n", "--n-points", dest="n_points", type=int, default=None,
                         help="number of points to keep")
     _add_params(p, _amount_options("reduce"))
-    _add_tile_options(p, "tiles (the reduction in blocks with halos on Dask, in memory: "
-                      "fancloud_vtk.distributed.tiled_reduce; one output file)", "reduce")
+    _add_tile_options(p, "tiles (the reduction in blocks with halos on Dask, the input read "
+                      "in chunks: fancloud_vtk.distributed.tiled_reduce; one output file)",
+                      "reduce")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_reduce)
 
