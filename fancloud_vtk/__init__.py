@@ -25,7 +25,14 @@ from .core.vdfc import (
     terrain_fan_cloud,
     terrain_path,
 )
-from .distributed import read_tiles, tile_boxes, tiled_fans, tiled_reduce, write_tiled_fans
+from .distributed import (
+    read_tiles,
+    tile_boxes,
+    tiled_fans,
+    tiled_reduce,
+    tiled_vdfc,
+    write_tiled_fans,
+)
 from .io import DroppedArrayWarning
 
 __version__ = "0.1.0"
@@ -100,6 +107,7 @@ __all__ = [
     "tile_boxes",
     "tiled_fans",
     "tiled_reduce",
+    "tiled_vdfc",
     "to_vtk",
     "write_tiled_fans",
 ]

@@ -42,7 +42,7 @@ from .core.model import FanCloud
 from .core.validation import FanCloudInputError, as_points, check_point_data, check_spread
 
 __all__ = ["MARGIN", "OPEN_MARGIN", "read_tiles", "tile_boxes", "tiled_fans", "tiled_reduce",
-           "write_tiled_fans"]
+           "tiled_vdfc", "write_tiled_fans"]
 
 #: an owned point is certified when the grown box reaches this many times its fan's
 #: radius beyond it (the radius: the farther of its farthest ring neighbour and a bound
@@ -1643,3 +1643,128 @@ def _block(sub, ids, own, share, options, carried=None):
             {name: arr[rows] for name, arr in (carried or {}).items()})
 
 
+
+
+# ----------------------------------------------------------------------------- VDFC forest
+
+
+def tiled_vdfc(
+    source,
+    k: int = 6,
+    *,
+    blocks=None,
+    n_blocks: int = 64,
+    tiles=(2, 2, 2),
+    scheduler="threads",
+    workers: int | None = None,
+    merge: str = "entropy",
+    weights=None,
+    n_roots: int = 1,
+    colors=None,
+    progress=None,
+):
+    """The merge forest of a view-dependent fan cloud, its blocks as Dask tasks.
+
+    The paper's §8 builds the forest of a terrain in blocks that share their boundary
+    points: each block merges its nodes with the shared points left alone, then the blocks
+    are united and merged further, so that the forest has no seam.
+    :meth:`~fancloud_vtk.ViewDependentFanCloud.build` runs the blocks in threads; here
+    each block is a Dask task (its arrays inside the task), on any scheduler, and a point
+    set's fans are built in tiles (:func:`tiled_fans`) on the same scheduler. The forest
+    is the one ``ViewDependentFanCloud.build(fans, blocks=...)`` gives, array for array,
+    whoever runs the blocks. The united merge runs in the calling process, over the nodes
+    the blocks leave (the whole forest is in its memory).
+
+    Parameters
+    ----------
+    source : FanCloud, TriangleMesh or array_like of shape (n, 3)
+        The fans (a mesh's one-rings), or points whose fans are built with
+        :func:`tiled_fans` (``k``, ``tiles``).
+    k : int, default: 6
+        Neighbours per fan, for points.
+    blocks : list of index arrays or one label per point, optional
+        The blocks, as in ``ViewDependentFanCloud.build`` (e.g. from
+        :func:`~fancloud_vtk.terrain_blocks` for a height field). Default: about
+        ``n_blocks`` spatial blocks (:func:`~fancloud_vtk.point_blocks`).
+    n_blocks : int, default: 64
+        With ``blocks=None``: the spatial blocks to aim for.
+    tiles : tuple of 3 int, default: (2, 2, 2)
+        For points: the tiles of :func:`tiled_fans`.
+    scheduler : None, str or dask.distributed.Client, default: "threads"
+        Where the blocks (and a point set's tiles) run: a Dask scheduler name, a
+        ``Client`` or a scheduler address; None: a ``LocalCluster`` of ``workers``
+        single-threaded worker processes, closed at the end.
+    workers : int, optional
+        With ``scheduler=None``: the worker processes (default: the CPU count).
+    merge, weights, n_roots, colors
+        As in ``ViewDependentFanCloud.build`` (``weights`` None: its default).
+    progress : callable, optional
+        ``progress(fraction, message)``, after each block.
+
+    Returns
+    -------
+    ViewDependentFanCloud
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fancloud_vtk import ViewDependentFanCloud, build_fans, point_blocks
+    >>> from fancloud_vtk.distributed import tiled_vdfc
+    >>> p = np.random.default_rng(0).normal(size=(6000, 3))
+    >>> p /= np.linalg.norm(p, axis=1)[:, None]
+    >>> fc = build_fans(p)
+    >>> vd = tiled_vdfc(fc, blocks=point_blocks(fc, 4), scheduler="sync")
+    >>> one = ViewDependentFanCloud.build(fc, blocks=point_blocks(fc, 4))
+    >>> bool(np.array_equal(vd.children, one.children) and np.array_equal(vd.error, one.error))
+    True
+    """
+    try:
+        import dask
+    except ImportError as exc:  # pragma: no cover - the test extra installs it
+        raise ImportError('tiled_vdfc needs Dask: pip install "fancloud-vtk[distributed]"') \
+            from exc
+    from .core.mesh import TriangleMesh
+    from .core.vdfc import VDFC_WEIGHTS, ViewDependentFanCloud, point_blocks
+
+    client, close = _client_for(scheduler, workers)
+    try:
+        if isinstance(source, FanCloud | TriangleMesh):
+            fc = source
+        else:
+            fc = tiled_fans(source, k, tiles=tiles,
+                            scheduler=client if client is not None else scheduler)
+        if blocks is None:
+            blocks = point_blocks(fc, n_blocks)
+        report = progress if progress is not None else (lambda f, m: None)
+        tasks = _TaskMap(dask, client, scheduler,
+                         lambda j, m: report(0.6 * j / m, f"{j} of {m} block(s) merged"))
+        return ViewDependentFanCloud.build(
+            fc, merge, weights=VDFC_WEIGHTS if weights is None else weights, blocks=blocks,
+            n_roots=n_roots, colors=colors, executor=tasks,
+            progress=lambda f, m: report(f, m) if f >= 0.6 else None)
+    finally:
+        if close is not None:
+            close()
+
+
+class _TaskMap:
+    """``map(fn, *iterables)`` as Dask tasks, the results in order (the executor that
+    ``ViewDependentFanCloud.build`` takes)."""
+
+    def __init__(self, dask, client, scheduler, done=None):
+        self.dask, self.client, self.scheduler, self.done = dask, client, scheduler, done
+
+    def map(self, fn, *iterables):
+        jobs = [(fn, i, *args) for i, args in enumerate(zip(*iterables, strict=True))]
+        out: list = [None] * len(jobs)
+        m = len(jobs)
+        for i, res in _map_tasks(self.dask, self.client, self.scheduler, _indexed, jobs,
+                                 None if self.done is None else
+                                 (lambda j: self.done(j, m))):
+            out[i] = res
+        return out
+
+
+def _indexed(fn, i, *args):
+    """(i, fn(*args)): a task's result with its place."""
+    return i, fn(*args)

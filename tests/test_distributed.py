@@ -764,3 +764,48 @@ def test_the_fans_command_in_tiles_carries_a_ply_files_colours(tmp_path, capsys)
     assert not _ply_has_faces(tmp_path / "cloud.ply")
     write_ply_rgb(tmp_path / "mesh.ply", points, rgb, faces=[[0, 1, 2]])
     assert _ply_has_faces(tmp_path / "mesh.ply")
+
+
+FOREST = ("positions", "normals", "children", "ring_offsets", "ring", "open", "error",
+          "bound", "radius")
+
+
+def same_forest(a, b) -> bool:
+    return all(np.array_equal(getattr(a, name), getattr(b, name)) for name in FOREST)
+
+
+def test_the_forests_blocks_as_dask_tasks_give_the_forest_of_threads():
+    """tiled_vdfc: the blocks of the merge forest as Dask tasks (a point set's spatial
+    blocks, a terrain's blocks, a point set whose fans are built in tiles), on the
+    synchronous and threaded schedulers and on a LocalCluster of 2 processes: the forest of
+    ViewDependentFanCloud.build with the same blocks (threads), array for array."""
+    distributed = pytest.importorskip("dask.distributed")
+    from fancloud_vtk import (
+        ViewDependentFanCloud,
+        point_blocks,
+        terrain_blocks,
+        terrain_fan_cloud,
+        tiled_vdfc,
+    )
+
+    points = sphere(12_000, seed=6)
+    fc = build_fans(points)
+    blocks = point_blocks(fc, 6)
+    one = ViewDependentFanCloud.build(fc, blocks=blocks)
+    assert same_forest(tiled_vdfc(fc, blocks=blocks, scheduler="sync"), one)
+    assert same_forest(tiled_vdfc(points, n_blocks=6, tiles=(2, 1, 1), scheduler="threads"),
+                       one)
+    x = np.linspace(0.0, 4.0, 90)
+    heights = np.add.outer(np.sin(x), np.cos(1.3 * x))
+    terrain = terrain_fan_cloud(heights, spacing=0.05)
+    cut = terrain_blocks(heights.shape, (30, 30))
+    ref = ViewDependentFanCloud.build(terrain, blocks=cut, merge="half_edge", n_roots=3)
+    done = []
+    vd = tiled_vdfc(terrain, blocks=cut, merge="half_edge", n_roots=3, scheduler="threads",
+                    progress=lambda f, m: done.append(f))
+    assert same_forest(vd, ref) and len(vd.roots) == len(ref.roots)
+    assert done == sorted(done) and done[-1] == 1.0
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        assert same_forest(tiled_vdfc(fc, blocks=blocks, scheduler=client), one)

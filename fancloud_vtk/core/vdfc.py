@@ -607,8 +607,8 @@ class ViewDependentFanCloud:
     # -- building ---------------------------------------------------------------
     @classmethod
     def build(cls, fancloud, merge: str = "entropy", *, weights=VDFC_WEIGHTS, blocks=None,
-              n_roots: int = 1, colors=None, workers: int | None = None, influence=None,
-              progress=None) -> ViewDependentFanCloud:
+              n_roots: int = 1, colors=None, workers: int | None = None, executor=None,
+              influence=None, progress=None) -> ViewDependentFanCloud:
         """Build the merge forest of a fan cloud or triangle mesh.
 
         Parameters
@@ -634,6 +634,15 @@ class ViewDependentFanCloud:
             cloud's colour array if it has one).
         workers : int, optional
             Threads for the blocks (default: the number of CPUs).
+        executor : concurrent.futures.Executor, optional
+            Runs the blocks instead of the threads: anything with the
+            ``map(fn, *iterables)`` of :class:`concurrent.futures.Executor`
+            giving the results in order (a ``ProcessPoolExecutor``, a Dask
+            client's ``get_executor()``;
+            :func:`fancloud_vtk.distributed.tiled_vdfc` runs them on any Dask
+            scheduler). Each block is one call of a module-level function on
+            its own arrays (picklable); the forest is the same whoever runs
+            them.
         influence : array of bool or point indices, optional
             Points whose influence to follow: ``influenced[node]`` is True for
             the nodes whose merge involved them or a node they reached (see
@@ -716,7 +725,15 @@ class ViewDependentFanCloud:
                 return run(ids, off, nb, shared[ids], 0)
 
             n_workers = workers or os.cpu_count() or 1
-            if n_workers > 1 and len(blist) > 1:
+            if executor is not None:  # each block's arrays go to its task
+                def args(ids):
+                    off, nb = VK.restrict_adjacency(adj_off, adj, ids, n)
+                    return (fc.points[ids], fc.normals[ids], col[ids], codes[ids], off, nb,
+                            shared[ids], w, dbar, method, 0, width, taint[ids])
+
+                results = list(executor.map(_merge_block, *zip(*map(args, blist),
+                                                               strict=True)))
+            elif n_workers > 1 and len(blist) > 1:
                 with ThreadPoolExecutor(n_workers) as pool:
                     results = list(pool.map(one, blist))
             else:
@@ -1008,6 +1025,12 @@ class ViewDependentFanCloud:
             raise ValueError("the forest's ring offsets do not match its ring")
         if len(self.ring) and (self.ring.min() < 0 or self.ring.max() >= n):
             raise ValueError("the forest's rings name nodes that do not exist")
+
+
+def _merge_block(*args):
+    """One block's merges (:func:`._vdfc_kernels.merge_forest` on the block's arrays): the
+    task :meth:`ViewDependentFanCloud.build` gives an ``executor``."""
+    return VK.merge_forest(*args)
 
 
 def _renumber(n_leaves, pos, nrm, col, child, ring_off, ring, opn):
