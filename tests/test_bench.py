@@ -620,10 +620,14 @@ def test_bench_tiles_compares_the_tiles_with_one_process(tmp_path, capsys):
     assert same["measured"] == "yes" and same["verdict"] == "yes"
     assert float(by_figure["tiles: wall time, one process, build_fans"]["measured"]) > 0
     assert "tiles: ratio tiled_fans 2x2x1, Dask threads / one process" in by_figure
-    assert {r["mode"] for r in res["runs"]} == {"one", "threads", "files", "blocks"}
+    assert {r["mode"] for r in res["runs"]} == {"one", "threads", "files", "blocks", "file"}
     mean = by_figure["tiles: reduction mean distance, tiled_reduce 2x2x1, Dask threads / "
                      "one process"]
     assert float(mean["measured"]) > 0 and mean["verdict"] in ("yes", "NO")
+    # the reduction of the points' .npy file, read in chunks: the array's
+    file = by_figure["tiles: reduction of the file the array's, tiled_reduce 2x2x1 of an .npy "
+                     "file (read in chunks of 100,000, out of core), Dask threads"]
+    assert file["measured"] == "yes" and file["verdict"] == "yes"
     files = "write_tiled_fans from .npy (out of core), LocalCluster 1 workers x 1 thread"
     assert by_figure[f"tiles: same fan cloud as one process, {files}"]["measured"] == "yes"
     ext = [e for e in res["extrapolation"]]

@@ -14,6 +14,7 @@ and whether the fan cloud is the one process's (a digest of every array).
 from __future__ import annotations
 
 import argparse
+import hashlib
 import resource
 import time
 
@@ -193,23 +194,51 @@ def child_reduce(n: int, seed: int, keep: float, tiles: list, mode: str) -> dict
     process, or ``tiled_reduce`` in blocks on Dask's threads; timed end to end (warm), then
     the result's fans' distance to the torus and the share of points kept near the blocks'
     inner faces against elsewhere."""
+    import os
+    import shutil
+    import tempfile
+
     import numpy as np
 
     from fancloud_vtk import build_fans, reduce, tile_boxes, tiled_reduce
     from fancloud_vtk.bench.metrics import surface_distance
+    from fancloud_vtk.distributed import _auto_halo
 
     pts, distance = torus_points(n, seed)
     small_pts = torus_points(20_000, seed + 1)[0]
+    tmp = tempfile.mkdtemp(prefix="fancloud_bench_reduce_")
+    halo = {}
     if mode == "one":
         def run(p):
             return reduce(build_fans(p), keep=keep)
+    elif mode == "file":  # the points written to .npy (not timed), read in chunks
+        def run(p):
+            path = os.path.join(tmp, f"p{len(p)}.npy")
+            if not os.path.exists(path):
+                np.save(path, p)
+            return tiled_reduce(path, keep=keep, tiles=tuple(tiles), scheduler="threads",
+                                chunk=100_000, **halo)
     else:
         def run(p):
-            return tiled_reduce(p, keep=keep, tiles=tuple(tiles), scheduler="threads")
+            return tiled_reduce(p, keep=keep, tiles=tuple(tiles), scheduler="threads", **halo)
     run(small_pts)  # kernels loaded
+    if mode != "one":  # the array's default halo, given to both: the same blocks
+        halo["halo"] = _auto_halo(pts, 6)
+        if mode == "file":
+            np.save(os.path.join(tmp, f"p{len(pts)}.npy"), pts)
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     t0 = time.perf_counter()
     fc = run(pts)
-    out = {"mode": mode, "n": n, "time": time.perf_counter() - t0, "kept": fc.n_points}
+    out = {"mode": mode, "n": n, "time": time.perf_counter() - t0, "kept": fc.n_points,
+           "peak_before_mb": before,
+           "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0}
+    if mode != "one":
+        h = hashlib.sha1()
+        for a in (fc.points, fc.offsets, fc.ring, fc.normals, fc.open,
+                  fc.point_data["original_id"]):
+            h.update(np.ascontiguousarray(a).tobytes())
+        out["digest"] = h.hexdigest()
+    shutil.rmtree(tmp, ignore_errors=True)
     d = surface_distance(fc.points, fc.triangles(), distance, 400_000, seed)
     out["mean"], out["max"] = d["mean"], d["max"]
     lo, _, _ = tile_boxes(pts, tuple(tiles))
@@ -224,7 +253,7 @@ def child_reduce(n: int, seed: int, keep: float, tiles: list, mode: str) -> dict
     return out
 
 
-def _reduce_rows(args, tiles, one, blocks) -> list[dict]:
+def _reduce_rows(args, tiles, one, blocks, file=None) -> list[dict]:
     big, small = TORUS
     data = (f"torus R = {big}, r = {small}, {size_label(args.reduce)} points uniform by area "
             f"(seed {args.seed}); keep {args.keep}")
@@ -245,6 +274,25 @@ def _reduce_rows(args, tiles, one, blocks) -> list[dict]:
     rows.append(_row(f"tiles: reduction max distance, {name} / one process", data,
                      "the largest of the samples and vertices",
                      f"{blocks['max'] / one['max']:.3f}", "x"))
+    if file is not None:
+        fname = f"tiled_reduce {tiles[0]}x{tiles[1]}x{tiles[2]} of an .npy file (read in chunks " \
+                "of 100,000, out of core), Dask threads"
+        rows.append(_row(f"tiles: reduction wall time, {fname}", data,
+                         "end to end, warm, best of 1; the file written before (not timed); "
+                         "both tiled runs given the array's default halo",
+                         _num(file["time"]), "s"))
+        rows.append(_row(f"tiles: reduction wall time, {fname} / the array's", data,
+                         "wall times above", f"{file['time'] / blocks['time']:.3f}", "x"))
+        for label, r in ((name, blocks), (fname, file)):
+            rows.append(_row(f"tiles: reduction peak memory, {label}", data,
+                             f"the calling process (before the call "
+                             f"{r['peak_before_mb']:.0f} MiB; its points included)",
+                             _num(r["peak_mb"]), "MiB"))
+        same = file["digest"] == blocks["digest"]
+        rows.append(_row(f"tiles: reduction of the file the array's, {fname}", data,
+                         "digest of the kept points, their fans, normals, open flags and "
+                         "original_id", "yes" if same else "no", "", "yes",
+                         "yes" if same else "NO"))
     for label, r in (("one process", one), (name, blocks)):
         seam = r["share_near"] / r["share_far"]
         rows.append(_row(f"tiles: reduction, share kept within 0.03 of the blocks' inner faces "
@@ -333,13 +381,13 @@ def run_tiles(args, argv: list[str]) -> dict:
         rows += _rows(n, args, tiles, got)
     if args.reduce:
         got = {}
-        for mode in ("one", "blocks"):
+        for mode in ("one", "blocks", "file"):
             _log(args.quiet, f"reduction of {size_label(args.reduce)} torus points: {mode}")
             got[mode] = run_task(f"{_HERE}:child_reduce", {
                 "n": args.reduce, "seed": args.seed, "keep": args.keep, "tiles": tiles,
                 "mode": mode})
             runs.append(got[mode])
-        rows += _reduce_rows(args, tiles, got["one"], got["blocks"])
+        rows += _reduce_rows(args, tiles, got["one"], got["blocks"], got["file"])
     if files_run is not None and args.extrapolate:
         res["extrapolation"] = extrapolate(files_run, args.extrapolate,
                                            args.extrapolate_workers)
