@@ -72,6 +72,13 @@ def test_bench_vdfc_smoke(tmp_path, capsys):
     assert "no triangle" in by_name["peers: ratio ours / best peer, SSE max over every layer "
                                     "drawn"]["parameters"]
 
+    # Figures 13 and 14: entropy merges against half-edge collapses, folded fans counted
+    for merge in ("entropy merges (the default)", "half-edge collapses"):
+        for name in (f"merges: fans folded at merge time (Fig. 14), {merge}",
+                     f"merges: folded front triangles per frame, mean, {merge}"):
+            assert _is_number(by_name[name]["measured"]), by_name[name]
+    assert raw_merges(out)["entropy"]["folded"] <= raw_merges(out)["half_edge"]["folded"]
+
     assert tuple(pheader) == PEER_COLUMNS
     assert [row["surface"] for row in peers] == list(SURFACES)
     for row in peers:
@@ -90,6 +97,10 @@ def test_bench_vdfc_smoke(tmp_path, capsys):
     assert len(raw["render"]["rows"]) == 2
     lines = (out / "vdfc_frames.csv").read_text().splitlines()
     assert len(lines) == 9 and lines[0].startswith("frame,")
+
+
+def raw_merges(out):
+    return json.loads((out / "vdfc.json").read_text())["merges"]
 
 
 def test_bench_vdfc_one_part(tmp_path, capsys):

@@ -811,3 +811,42 @@ def test_the_vdfc_verb_cuts_a_point_set_into_blocks_by_block_size():
     assert one.n_leaves == cut.n_leaves == fc.n_points
     # the same points, another merge order: the blocks were used
     assert not np.array_equal(one.children, cut.children)
+
+
+# -- fans made invalid by merges (the paper's Figure 14) ------------------------------
+
+
+def test_a_fan_turned_round_is_found_folded(forest, terrain):
+    """folded_fans: a merged node's fan sorted at merge time folds only past a gap of more
+    than 180 degrees; the grid's own fans never fold; a node whose ring is turned round
+    (clockwise about its normal) is found, and only it."""
+    folded = forest.folded_fans()
+    assert folded.dtype == bool and folded.shape == (forest.n_nodes,)
+    assert not folded[forest.is_leaf].any()
+    inner = np.flatnonzero(~forest.is_leaf & ~forest.open)
+    x = int(inner[np.argmax(np.diff(forest.ring_offsets)[inner])])
+    ring = forest.ring.copy()
+    a, b = forest.ring_offsets[x], forest.ring_offsets[x + 1]
+    ring[a:b] = ring[a:b][::-1]
+    turned = ViewDependentFanCloud(
+        positions=forest.positions, normals=forest.normals, children=forest.children,
+        ring_offsets=forest.ring_offsets, ring=ring, open=forest.open, error=forest.error,
+        bound=forest.bound, radius=forest.radius, merge=forest.merge,
+        weights=forest.weights)
+    again = turned.folded_fans()
+    assert again[x] and np.array_equal(np.delete(again, x), np.delete(folded, x))
+
+
+def test_folded_front_triangles_are_those_turned_against_their_fans_point(forest):
+    """Front.folded_triangles: a triangle (p, a, b) folds when it turns against p's
+    normal; the full-resolution front of the grid has none, and a triangle written the
+    other way round is found."""
+    from fancloud_vtk.core.vdfc import Front
+
+    vd = _fresh(forest)
+    front = vd.front_arrays(ABOVE, e_max=1e-9)
+    assert front.n_points == forest.n_leaves and not front.folded_triangles().any()
+    tri = front.triangles.copy()
+    tri[0] = tri[0, [0, 2, 1]]
+    mask = Front(front.points, tri, front.normals).folded_triangles()
+    assert mask[0] and not mask[1:].any()

@@ -81,7 +81,7 @@ TARGET_TPP = 2.0  #: triangles per active point
 TPP_TOLERANCE = 0.1  #: |mean triangles per point - 2| allowed
 TARGET_SSE_RATIO = 1.0  #: our screen-space error / the best peer's, at the same triangles
 
-PARTS = ("build", "frames", "peers")
+PARTS = ("build", "frames", "peers", "merges")
 DEFAULT_N, QUICK_N = 1000, 200
 DEFAULT_FRAMES, QUICK_FRAMES = 300, 30
 #: e_max in metres at d_max (the range of sight, about 35.6 km on the DEM):
@@ -256,6 +256,53 @@ def run_frames(vd, cams, e_max: float, d_max: float, quiet: bool,
         "max_total": float(max(f["ms"] for f in rest))}}
     vd.reset_front()
     return {"frames": frames, "phases": phases, "e_max": e_max, "d_max": d_max}
+
+
+def run_merges(fc, vd, cams, e_max: float, d_max: float) -> dict:
+    """The paper's Figures 13 and 14: the forest of entropy merges (``vd``) against one of
+    half-edge collapses, over the same fly-through at the same e_max: fans folded at merge
+    time (:meth:`ViewDependentFanCloud.folded_fans`), front triangles per frame and of them
+    the folded ones (:meth:`Front.folded_triangles`)."""
+    from fancloud_vtk import ViewDependentFanCloud
+
+    out = {}
+    for merge, forest in (("entropy", vd), ("half_edge", None)):
+        if forest is None:
+            forest = ViewDependentFanCloud.build(fc, merge)
+        folded = forest.folded_fans()
+        inner = ~forest.is_leaf
+        forest.reset_front()
+        tris, bad, tpp = [], [], []
+        for cam in cams:
+            front = forest.front_arrays(cam, e_max, d_max)
+            tris.append(front.n_triangles)
+            bad.append(int(front.folded_triangles().sum()))
+            tpp.append(front.stats["triangles_per_point"])
+        forest.reset_front()
+        out[merge] = {"merged": int(inner.sum()), "folded": int(folded[inner].sum()),
+                      "folded_leaves": int(folded[~inner].sum()),
+                      "triangles": float(np.mean(tris)), "folded_triangles": float(np.mean(bad)),
+                      "folded_triangles_max": int(max(bad)),
+                      "folded_share": float(np.sum(bad) / max(np.sum(tris), 1)),
+                      "tpp": float(np.mean(tpp))}
+    return out
+
+
+def merge_rows(m: dict, data: str, e_max: float) -> list[dict]:
+    rows = []
+    names = {"entropy": "entropy merges (the default)", "half_edge": "half-edge collapses"}
+    for merge, r in m.items():
+        rows.append(_row(f"merges: fans folded at merge time (Fig. 14), {names[merge]}", data,
+                         f"of {r['merged']:,} merged nodes "
+                         f"({100 * r['folded'] / max(r['merged'], 1):.3f}%); input fans "
+                         f"folded: {r['folded_leaves']}", f"{r['folded']:,}", ""))
+        rows.append(_row(f"merges: folded front triangles per frame, mean, {names[merge]}",
+                         data, f"the fly-through at e_max {e_max:g} m; of "
+                         f"{r['triangles']:,.0f} triangles per frame on average "
+                         f"({100 * r['folded_share']:.2f}%); max {r['folded_triangles_max']:,}; "
+                         f"triangles per active point {r['tpp']:.3f}",
+                         f"{r['folded_triangles']:.1f}", ""))
+    return rows
 
 
 def frame_summary(fr: dict, n: int) -> dict:
@@ -711,7 +758,7 @@ def run_vdfc(args, argv: list[str]) -> dict:
            "args": {"part": parts, "n": side, "repeat": args.repeat, "frames": n_frames,
                     "e_max": args.e_max, "cameras": args.cameras, "samples": args.samples,
                     "render_frames": args.render_frames, "seed": args.seed},
-           "build": None, "frames": None, "render": None, "peers": None}
+           "build": None, "frames": None, "render": None, "peers": None, "merges": None}
     _warm(quiet)
     heights, spacing, origin, data = terrain(side)
     fc = terrain_fan_cloud(heights, spacing=spacing, origin=origin)
@@ -759,6 +806,14 @@ def run_vdfc(args, argv: list[str]) -> dict:
         rows += frame_rows(fr, s, data, render, res["frames"].get("superfluous"),
                            res["frames"].get("serial"))
         notes += phase_notes(fr["phases"], n_frames)
+    if "merges" in parts:
+        _log(quiet, "merges: entropy merges against half-edge collapses, folded fans")
+        if fr is None:
+            vd = ViewDependentFanCloud.build(fc)
+            cams = terrain_path(vd.bounds(), n_frames)
+            d_max = vd.default_d_max(cams[0])
+        res["merges"] = run_merges(fc, vd, cams, args.e_max, d_max)
+        rows += merge_rows(res["merges"], data, args.e_max)
     pr = None
     if "peers" in parts:
         _log(quiet, f"peers: {args.cameras} cameras")

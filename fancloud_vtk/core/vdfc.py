@@ -430,6 +430,29 @@ class Front(TriangleMesh):
     def n_points(self) -> int:
         return int(self.points.shape[0])
 
+    def folded_triangles(self) -> np.ndarray:
+        """Which triangles fold: turn against the normal of the point whose fan gave them.
+
+        Each triangle is ``(p, a, b)`` with ``a``, ``b`` consecutive in the fan of ``p``
+        as drawn (its neighbours, or the active stand-ins of those that are not active),
+        counter-clockwise around ``p``'s normal when the fan is valid. A merge can move a
+        stand-in across another (the paper's Figure 14: a fan made invalid by a merge);
+        the triangle then turns over. The front draws it as it is (nothing is removed or
+        refined further: docs/vdfc.md); ``fancloud bench vdfc`` counts them.
+        """
+        return _turned(self.points, self.normals, self.triangles[:, 0],
+                       self.triangles[:, 1], self.triangles[:, 2])
+
+
+def _turned(points, normals, p, a, b) -> np.ndarray:
+    """det[a - p, b - p, n_p] < 0 (beyond round-off): the triangle turns against p's
+    normal."""
+    u = points[a] - points[p]
+    v = points[b] - points[p]
+    det = np.einsum("ij,ij->i", np.cross(u, v), normals[p])
+    scale = np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1)
+    return det < -1e-9 * scale
+
 
 # -- the forest ----------------------------------------------------------------------
 
@@ -831,6 +854,29 @@ class ViewDependentFanCloud:
             weights=self.weights)
 
     # -- queries ----------------------------------------------------------------
+    def folded_fans(self) -> np.ndarray:
+        """Which nodes' fans fold: a pair of consecutive neighbours turns against the node's
+        normal (the fan does not go round the node once; the paper's Figure 14, a fan
+        made invalid by a merge). A merged node's fan is sorted around its normal at
+        merge time, so it folds only where a gap of more than 180 degrees falls inside
+        it (a closed fan's node outside its neighbours' polygon); a leaf keeps its input
+        fan. Boolean, one per node. Nothing in the forest or the front changes such a
+        fan (docs/vdfc.md); ``fancloud bench vdfc`` counts them.
+        """
+        off = self.ring_offsets
+        sizes = np.diff(off)
+        node = np.repeat(np.arange(self.n_nodes), sizes)
+        at = np.arange(off[-1])
+        nxt = at + 1
+        last = nxt == np.repeat(off[1:], sizes)
+        nxt[last] = np.repeat(off[:-1], sizes)[last]  # the closing pair (closed fans)
+        use = (~last | ~self.open[node]) & (np.repeat(sizes, sizes) >= 2)
+        bad = _turned(self.positions, self.normals, node[use], self.ring[at[use]],
+                      self.ring[nxt[use]])
+        out = np.zeros(self.n_nodes, bool)
+        out[node[use][bad]] = True
+        return out
+
     @property
     def n_nodes(self) -> int:
         return int(self.positions.shape[0])
