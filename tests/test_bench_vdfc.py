@@ -78,6 +78,12 @@ def test_bench_vdfc_smoke(tmp_path, capsys):
                      f"merges: folded front triangles per frame, mean, {merge}"):
             assert _is_number(by_name[name]["measured"]), by_name[name]
     assert raw_merges(out)["entropy"]["folded"] <= raw_merges(out)["half_edge"]["folded"]
+    ratio = by_name["merges: screen-space error p99 at equal triangles (Fig. 13), half-edge "
+                    "collapses / entropy merges"]
+    assert _is_number(ratio["measured"]) and float(ratio["measured"]) > 0
+    sse = raw_merges(out)["sse"]  # the half-edge front held the entropy front's triangles
+    assert abs(sse["half_edge"]["triangles"] - sse["entropy"]["triangles"]) \
+        <= 0.01 * sse["entropy"]["triangles"]
 
     assert tuple(pheader) == PEER_COLUMNS
     assert [row["surface"] for row in peers] == list(SURFACES)

@@ -258,6 +258,72 @@ def run_frames(vd, cams, e_max: float, d_max: float, quiet: bool,
     return {"frames": frames, "phases": phases, "e_max": e_max, "d_max": d_max}
 
 
+def _equal_front(vd, cam, d_max: float, target: int, e_max: float):
+    """The front of ``vd`` for ``cam`` whose triangle count is nearest ``target``: e_max
+    searched by bisection on a log scale (non-incremental fronts); (front, e_max)."""
+    lo, hi = e_max / 64.0, e_max * 64.0
+    best = None
+    for _ in range(24):
+        mid = float(np.sqrt(lo * hi))
+        front = vd.front_arrays(cam, mid, d_max, incremental=False)
+        if best is None or abs(front.n_triangles - target) < abs(best[0].n_triangles - target):
+            best = (front, mid)
+        if front.n_triangles == target or hi / lo < 1.0001:
+            break
+        if front.n_triangles > target:  # too fine: a larger e_max
+            lo = mid
+        else:
+            hi = mid
+    return best
+
+
+def merges_sse(fc, forests, heights, spacing, origin, cams, e_max, d_max, n_cams, samples,
+               seed) -> dict:
+    """The paper's Fig. 13 as a measure: the screen-space error of the entropy forest's
+    front and of the half-edge forest's front with the same triangle count (its e_max
+    searched), over ``n_cams`` cameras of the fly-through, on points sampled in view."""
+    ny, nx = heights.shape
+    rng = np.random.default_rng(seed)
+    idx = np.unique(np.round(np.linspace(0, len(cams) - 1, n_cams + 2)[1:-1]).astype(int))
+    per = {m: {"sse": [], "worst": [], "missed": 0, "triangles": [], "e_max": []}
+           for m in forests}
+    in_view = 0
+    for k in idx:
+        cam = cams[k]
+        sel = view_sample(fc.points, cam, samples, rng)
+        want = np.zeros(ny * nx, np.bool_)
+        want[sel] = True
+        want = want.reshape(ny, nx)
+        dist = np.linalg.norm(fc.points[sel] - np.asarray(cam[0], np.float64), axis=1)
+        in_view += len(sel)
+        ref = forests["entropy"].front_arrays(cam, e_max, d_max, incremental=False)
+        fronts = {"entropy": (ref, e_max)}
+        fronts["half_edge"] = _equal_front(forests["half_edge"], cam, d_max, ref.n_triangles,
+                                           e_max)
+        for m, (front, e) in fronts.items():
+            best, worst, hits = _surface_errors(front.points, front.triangles, heights,
+                                                spacing, origin, want)
+            ok = hits.ravel()[sel] > 0
+            p = per[m]
+            p["sse"].append(best.ravel()[sel][ok] / dist[ok])
+            p["worst"].append(worst.ravel()[sel][ok] / dist[ok])
+            p["missed"] += int((~ok).sum())
+            p["triangles"].append(front.n_triangles)
+            p["e_max"].append(e)
+    for forest in forests.values():
+        forest.reset_front()
+    out = {"cameras": [int(k) for k in idx], "in_view": in_view, "samples": samples}
+    for m, p in per.items():
+        sse = np.concatenate(p["sse"])
+        worst = np.concatenate(p["worst"])
+        out[m] = {"triangles": float(np.mean(p["triangles"])), "missed": p["missed"],
+                  "e_max": [float(x) for x in p["e_max"]],
+                  "sse_max": float(sse.max()), "sse_p99": float(np.percentile(sse, 99)),
+                  "sse_mean": float(sse.mean()), "worst_max": float(worst.max()),
+                  "worst_p99": float(np.percentile(worst, 99))}
+    return out
+
+
 def run_merges(fc, vd, cams, e_max: float, d_max: float) -> dict:
     """The paper's Figures 13 and 14: the forest of entropy merges (``vd``) against one of
     half-edge collapses, over the same fly-through at the same e_max: fans folded at merge
@@ -279,6 +345,7 @@ def run_merges(fc, vd, cams, e_max: float, d_max: float) -> dict:
             bad.append(int(front.folded_triangles().sum()))
             tpp.append(front.stats["triangles_per_point"])
         forest.reset_front()
+        out.setdefault("forests", {})[merge] = forest
         out[merge] = {"merged": int(inner.sum()), "folded": int(folded[inner].sum()),
                       "folded_leaves": int(folded[~inner].sum()),
                       "triangles": float(np.mean(tris)), "folded_triangles": float(np.mean(bad)),
@@ -291,7 +358,8 @@ def run_merges(fc, vd, cams, e_max: float, d_max: float) -> dict:
 def merge_rows(m: dict, data: str, e_max: float) -> list[dict]:
     rows = []
     names = {"entropy": "entropy merges (the default)", "half_edge": "half-edge collapses"}
-    for merge, r in m.items():
+    for merge in names:
+        r = m[merge]
         rows.append(_row(f"merges: fans folded at merge time (Fig. 14), {names[merge]}", data,
                          f"of {r['merged']:,} merged nodes "
                          f"({100 * r['folded'] / max(r['merged'], 1):.3f}%); input fans "
@@ -302,6 +370,28 @@ def merge_rows(m: dict, data: str, e_max: float) -> list[dict]:
                          f"({100 * r['folded_share']:.2f}%); max {r['folded_triangles_max']:,}; "
                          f"triangles per active point {r['tpp']:.3f}",
                          f"{r['folded_triangles']:.1f}", ""))
+    sse = m.get("sse")
+    if sse:
+        cams = f"{len(sse['cameras'])} cameras of the fly-through, {sse['in_view']:,} points " \
+               "sampled in view"
+        for merge in names:
+            r = sse[merge]
+            how = (f"at e_max {e_max:g} m" if merge == "entropy" else
+                   "e_max searched per camera for the entropy front's triangle count ("
+                   + ", ".join(f"{x:.3g}" for x in r["e_max"]) + " m)")
+            rows.append(_row(f"merges: screen-space error p99 at equal triangles (Fig. 13), "
+                             f"{names[merge]}", data,
+                             f"{cams}; {r['triangles']:,.0f} triangles per front, {how}; "
+                             f"max {r['sse_max']:.3g}, mean {r['sse_mean']:.3g}; every layer "
+                             f"drawn: p99 {r['worst_p99']:.3g}, max {r['worst_max']:.3g}; "
+                             f"points under no triangle {r['missed']:,}",
+                             f"{r['sse_p99']:.3g}", ""))
+        ratio = sse["half_edge"]["sse_p99"] / sse["entropy"]["sse_p99"]
+        rows.append(_row("merges: screen-space error p99 at equal triangles (Fig. 13), "
+                         "half-edge collapses / entropy merges", data,
+                         f"{cams}; max: "
+                         f"{sse['half_edge']['sse_max'] / sse['entropy']['sse_max']:.3f}",
+                         f"{ratio:.3f}", "x"))
     return rows
 
 
@@ -812,8 +902,11 @@ def run_vdfc(args, argv: list[str]) -> dict:
             vd = ViewDependentFanCloud.build(fc)
             cams = terrain_path(vd.bounds(), n_frames)
             d_max = vd.default_d_max(cams[0])
-        res["merges"] = run_merges(fc, vd, cams, args.e_max, d_max)
-        rows += merge_rows(res["merges"], data, args.e_max)
+        merges = run_merges(fc, vd, cams, args.e_max, d_max)
+        merges["sse"] = merges_sse(fc, merges.pop("forests"), heights, spacing, origin, cams,
+                                   args.e_max, d_max, args.cameras, args.samples, args.seed)
+        res["merges"] = merges
+        rows += merge_rows(merges, data, args.e_max)
     pr = None
     if "peers" in parts:
         _log(quiet, f"peers: {args.cameras} cameras")
