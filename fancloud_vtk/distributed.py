@@ -555,11 +555,7 @@ def write_tiled_fans(
     # pass 1: size, bounds, a sample
     t0 = time.perf_counter()
     report(0.0, "scan the input")
-    n, blo, bhi, sample, schema = _scan(chunks())
-    _F._check_size(n, k)
-    check_spread(sample)  # all points on a line (or one point) have no fans
-    t = _auto_tiles(n, blo, bhi, tile_points) if isinstance(tiles, str) else \
-        _check_tiles(tiles)
+    n, blo, bhi, sample, schema, t = _scan_checked(chunks, k, tiles, tile_points)
     lo, hi, number = _box_grid(blo, bhi, t)
     width0 = start_halo if start_halo is not None else _auto_halo_sample(sample, n, k)
     timings["scan"] = time.perf_counter() - t0
@@ -859,6 +855,17 @@ def _scan(chunks):
     if n == 0:
         raise FanCloudInputError("the input has no points")
     return n, blo, bhi, sample, schema or []
+
+
+def _scan_checked(chunks, k, tiles, tile_points):
+    """The first pass over a chunked input: (n, bounds lo, hi, sample, schema, tiles),
+    refusing too few points or points on a line; ``tiles`` "auto" made from the size."""
+    n, blo, bhi, sample, schema = _scan(chunks())
+    _F._check_size(n, k)
+    check_spread(sample)  # all points on a line (or one point) have no fans
+    auto = isinstance(tiles, str) and tiles == "auto"
+    t = _auto_tiles(n, blo, bhi, tile_points) if auto else _check_tiles(tiles)
+    return n, blo, bhi, sample, schema, t
 
 
 def _auto_tiles(n, blo, bhi, tile_points) -> np.ndarray:
@@ -1517,13 +1524,7 @@ def _reduce_file(dask, path, n_points, keep, k, tiles, halo, scheduler, workers,
     timings = {}
     t0 = time.perf_counter()
     report(0.0, "scan the input")
-    n, blo, bhi, sample, schema = _scan(chunks())
-    _F._check_size(n, k)
-    check_spread(sample)
-    if isinstance(tiles, str) and tiles == "auto":
-        t = _auto_tiles(n, blo, bhi, tile_points)
-    else:
-        t = _check_tiles(tiles)
+    n, blo, bhi, sample, schema, t = _scan_checked(chunks, k, tiles, tile_points)
     width = _auto_halo_sample(sample, n, k) if halo is None else _check_halo(halo)
     lo, hi, number = _box_grid(blo, bhi, t)
     m = len(lo)

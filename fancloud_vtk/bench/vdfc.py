@@ -284,17 +284,13 @@ def merges_sse(fc, forests, heights, spacing, origin, cams, e_max, d_max, n_cams
     searched), over ``n_cams`` cameras of the fly-through, on points sampled in view."""
     ny, nx = heights.shape
     rng = np.random.default_rng(seed)
-    idx = np.unique(np.round(np.linspace(0, len(cams) - 1, n_cams + 2)[1:-1]).astype(int))
+    idx = _spread(len(cams), n_cams)
     per = {m: {"sse": [], "worst": [], "missed": 0, "triangles": [], "e_max": []}
            for m in forests}
     in_view = 0
     for k in idx:
         cam = cams[k]
-        sel = view_sample(fc.points, cam, samples, rng)
-        want = np.zeros(ny * nx, np.bool_)
-        want[sel] = True
-        want = want.reshape(ny, nx)
-        dist = np.linalg.norm(fc.points[sel] - np.asarray(cam[0], np.float64), axis=1)
+        sel, want, dist = _in_view(fc.points, cam, samples, rng, (ny, nx))
         in_view += len(sel)
         ref = forests["entropy"].front_arrays(cam, e_max, d_max, incremental=False)
         fronts = {"entropy": (ref, e_max)}
@@ -600,6 +596,21 @@ def view_sample(points, cam, samples: int, rng) -> np.ndarray:
     return idx
 
 
+def _spread(n_frames: int, n_cams: int) -> np.ndarray:
+    """``n_cams`` frames spread over the fly-through (its ends left out)."""
+    return np.unique(np.round(np.linspace(0, n_frames - 1, n_cams + 2)[1:-1]).astype(int))
+
+
+def _in_view(points, cam, samples: int, rng, shape):
+    """Grid points in view (a sample): (their indices, a grid mask of them, their distance
+    to the eye)."""
+    sel = view_sample(points, cam, samples, rng)
+    want = np.zeros(shape[0] * shape[1], np.bool_)
+    want[sel] = True
+    dist = np.linalg.norm(points[sel] - np.asarray(cam[0], dtype=np.float64), axis=1)
+    return sel, want.reshape(shape), dist
+
+
 def greedy_terrain(heights, spacing, origin, n_triangles: int):
     """vtkGreedyTerrainDecimation to ``n_triangles``: (vertices, triangles, seconds)."""
     from vtkmodules.util.numpy_support import vtk_to_numpy
@@ -651,7 +662,7 @@ def run_peers(vd, fc, heights, spacing, origin, cams, fr: dict, s: dict, n_cams:
     except Exception as exc:  # e.g. fast-simplification not installed
         peers[SURFACES[2]] = f"{type(exc).__name__}: {exc}"
     rng = np.random.default_rng(seed)
-    idx = np.unique(np.round(np.linspace(0, len(cams) - 1, n_cams + 2)[1:-1]).astype(int))
+    idx = _spread(len(cams), n_cams)
     e_max, d_max = fr["e_max"], fr["d_max"]
     per = {name: {"sse": [], "worst": [], "in_view": 0, "missed": 0, "tri_view": []}
            for name in SURFACES}
@@ -659,12 +670,7 @@ def run_peers(vd, fc, heights, spacing, origin, cams, fr: dict, s: dict, n_cams:
     vd.reset_front()
     for k in idx:
         cam = cams[k]
-        sel = view_sample(fc.points, cam, samples, rng)
-        want = np.zeros(ny * nx, np.bool_)
-        want[sel] = True
-        want = want.reshape(ny, nx)
-        eye = np.asarray(cam[0], dtype=np.float64)
-        dist = np.linalg.norm(fc.points[sel] - eye, axis=1)
+        sel, want, dist = _in_view(fc.points, cam, samples, rng, (ny, nx))
         front = vd.front_arrays(cam, e_max, d_max)
         surfaces = {SURFACES[0]: (front.points, front.triangles)}
         surfaces.update({name: p[:2] for name, p in peers.items() if not isinstance(p, str)})
