@@ -1210,9 +1210,11 @@ def _chunks_with_data(path, chunk: int, format, want: bool) -> Iterator:
             raise FileReadError(path, f"not a valid .npy file ({type(exc).__name__}: {exc})") \
                 from exc
         if arr.dtype.names is not None or arr.dtype.kind not in "iuf" or arr.ndim != 2 \
-                or arr.shape[1] < 3 or arr.shape[0] == 0:
+                or arr.shape[1] < 3:
             raise FileReadError(path, f"expected an (n, >=3) real array, got {arr.dtype} "
                                       f"{arr.shape}")
+        if arr.shape[0] == 0:  # as read_point_cloud says it
+            raise FileReadError(path, "the file contains no points")
         for i in range(0, len(arr), chunk):
             yield np.array(arr[i:i + chunk, :3], dtype=np.float64), {}
     elif fmt in ("las", "laz"):

@@ -472,6 +472,9 @@ def test_bad_chunked_input_is_refused(tmp_path):
         D.write_tiled_fans(tmp_path / "text.npy", tmp_path / "out2", scheduler="sync")
     with pytest.raises(FileReadError, match="no such file"):
         list(read_point_chunks(tmp_path / "missing.npy"))
+    np.save(tmp_path / "none.npy", np.empty((0, 3)))  # as read_point_cloud says it
+    with pytest.raises(FileReadError, match="contains no points"):
+        list(read_point_chunks(tmp_path / "none.npy"))
     with pytest.raises(ValueError, match="chunk"):
         list(read_point_chunks(tmp_path / "nan.npy", chunk=0))
     few = np.repeat(points[:4], 50, axis=0)  # 200 rows, 4 distinct points
