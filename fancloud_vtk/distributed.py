@@ -38,11 +38,12 @@ from scipy.spatial import cKDTree
 
 from .core import _ring_kernels as RingK
 from .core import fans as _F
+from .core.mesh import TriangleMesh
 from .core.model import FanCloud
 from .core.validation import FanCloudInputError, as_points, check_point_data, check_spread
 
-__all__ = ["MARGIN", "OPEN_MARGIN", "read_tiles", "tile_boxes", "tiled_fans", "tiled_reduce",
-           "tiled_vdfc", "write_tiled_fans"]
+__all__ = ["BAND", "MARGIN", "MESH_HALO", "OPEN_MARGIN", "read_tiles", "tile_boxes", "tiled_fans",
+           "tiled_mesh", "tiled_reduce", "tiled_vdfc", "write_tiled_fans"]
 
 #: an owned point is certified when the grown box reaches this many times its fan's
 #: radius beyond it (the radius: the farther of its farthest ring neighbour and a bound
@@ -215,7 +216,8 @@ point_data
                 widths[t] = max(2.0 * widths[t], 1e-9 * float(np.abs(bhi - blo).max()))
                 ids = _grown(pts, lo[t], hi[t], widths[t])
             built[t] = len(ids)
-            jobs.append((pts[ids], ids, owned[t], lo[t], hi[t], widths[t], blo, bhi, options))
+            jobs.append((pts[ids], ids, owned[t], lo[t], hi[t], widths[t], blo, bhi, options,
+                         (grid.lo, grid.h)))
         out = _run_tiles(dask, jobs, scheduler)
         again = []
         for t, res in zip(todo, out, strict=True):
@@ -273,13 +275,14 @@ point_data
     return fc
 
 
-def _tile(sub, ids, own, lo, hi, width, blo, bhi, options):
+def _tile(sub, ids, own, lo, hi, width, blo, bhi, options, cells=None):
     """One tile's task: the fans of ``sub`` (the points ``ids``, sorted), those of the
     owned points ``own`` (global, sorted) kept. Returns (own, sizes, ring (global), normals,
-    open, rotated, no_plane, halo needed)."""
+    open, rotated, no_plane, halo needed). ``cells``: the whole cloud's grid (lo, h), whose
+    order breaks ties between equal distances (:func:`~fancloud_vtk.core.fans._fans`)."""
     k, max_angle, max_replacements, rule, rule_id, rotate, reach, sheets = options
     fc, no_plane = _F._fans(sub, k, max_angle, max_replacements, rule, rule_id, rotate, reach,
-                            sheets, None, False, {}, 1, None)
+                            sheets, None, False, {}, 1, None, cells)
     loc = np.searchsorted(ids, own)
     sizes = np.diff(fc.offsets)[loc]
     take = _positions(fc.offsets[loc], sizes)
@@ -290,30 +293,32 @@ def _tile(sub, ids, own, lo, hi, width, blo, bhi, options):
             needed)
 
 
-def _run_tiles(dask, jobs, scheduler) -> list:
-    """``_tile(*job)`` for every job, on the scheduler; the results in order."""
+def _run_tiles(dask, jobs, scheduler, fn=None) -> list:
+    """``fn(*job)`` (default :func:`_tile`) for every job, on the scheduler; the results in
+    order."""
+    fn = _tile if fn is None else fn
     if isinstance(scheduler, str) and "://" in scheduler:
         from dask.distributed import Client
 
         with Client(scheduler) as client:
-            return _on_client(client, jobs)
+            return _on_client(client, jobs, fn)
     if isinstance(scheduler, str):
-        return list(dask.compute(*[dask.delayed(_tile, pure=False)(*job) for job in jobs],
+        return list(dask.compute(*[dask.delayed(fn, pure=False)(*job) for job in jobs],
                                  scheduler=scheduler))
     if all(hasattr(scheduler, name) for name in ("compute", "gather")):
-        return _on_client(scheduler, jobs)
+        return _on_client(scheduler, jobs, fn)
     raise TypeError("scheduler must be a Dask scheduler name, a scheduler address or a "
                     f"dask.distributed.Client, got {scheduler!r}")
 
 
-def _on_client(client, jobs) -> list:
+def _on_client(client, jobs, fn) -> list:
     """The tiles on a ``dask.distributed`` client, each tile's points inside its task: the
     scheduler keeps them, so a task whose worker dies runs again on another (points
     scattered to a worker would die with it). Dask's advice against large graphs is
     silenced here for that reason."""
     import dask
 
-    tasks = [dask.delayed(_tile, pure=False)(*job) for job in jobs]
+    tasks = [dask.delayed(fn, pure=False)(*job) for job in jobs]
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message="Sending large graph", category=UserWarning)
         futures = client.compute(tasks)
@@ -403,6 +408,290 @@ _WORK = ".work"
 #: the fan was built (by the tile's orientation and the agreement between tiles);
 #: :func:`read_tiles` turns them back before orienting the whole cloud as build_fans does
 FAN_FLIPPED = "fan_flipped"
+
+
+#: the mesh's halo, by default: this many times the fans' default halo (the growing and
+#: the hole closing look a few rings further than a fan does; see :func:`tiled_mesh`)
+MESH_HALO = 2.0
+#: the band around a tile's box whose triangles its owners must have made the same, as a
+#: fraction of the tile's halo
+BAND = 0.1
+
+
+def tiled_mesh(
+    points,
+    k: int = 6,
+    *,
+    tiles=(2, 2, 2),
+    halo: float | None = None,
+    scheduler="threads",
+    rings: str = "auto",
+    close_holes: bool = True,
+    max_hole: int = 32,
+    max_hole_diameter: float = 6.0,
+    remove_self_intersections: bool = True,
+    min_component: int = 20,
+    self_intersections: bool = True,
+    max_angle: float = 90.0,
+    max_replacements: int = 42,
+    rule: str = "cover",
+    rotate_sharp_edges: bool = True,
+    reach: float = 5.0,
+    separate_sheets: bool = False,
+    point_data=None,
+) -> TriangleMesh:
+    """The mesh of a point cloud (section 4), grown in tiles with halos as Dask tasks.
+
+    The triangles (each the same way round), normals and outliers of
+    ``fan_cloud_to_mesh(build_fans(points))`` with the same parameters, in another order,
+    wherever the mesh's stages decide from what lies near; see "Not the same" below. The
+    fans are built by :func:`tiled_fans`. The mesh's normals are then oriented again over
+    the whole cloud (which way the fans run the triangles they share: a vote over each
+    connected piece). Each tile then builds the fans of its points and of a halo ``halo``
+    wide around them, and grows, closes and cleans their mesh as the whole cloud's is:
+    in the whole cloud's spatial order, which breaks the ties. A triangle is kept by the
+    tile that owns its lowest-numbered point. The outliers (small stray pieces), the
+    choice of ``rings='auto'``, the checks and the turning of closed pieces outward look
+    at the whole mesh, and are done on the stitched triangles.
+
+    No bound on how far a decision reaches is proved: every tile therefore also returns
+    its triangles in a band around its box (:data:`BAND` times the halo wide), which the
+    tiles owning them must have made the same; where they did not, those tiles are built
+    again with their halos doubled (``stats['rebuilt']``), until they agree or a halo
+    holds the whole cloud.
+
+    Not the same: two stages of the clean-up choose by a count over the whole mesh. The
+    filling rounds keep the round that leaves the fewest boundary edges and unused points
+    in all, and the self-intersection rounds step back when a refill made more crossing
+    pairs in all. A tile counts over its own points and halo, and may choose another
+    round; the triangles that round changed then differ from the one-process mesh, inside
+    the tile (where the band check does not look). Seen in the tests: 4 of 60,000
+    triangles on a torus of 30,000 points in 2x2x1 tiles; none on the other clouds. The
+    stitched mesh's checks (``stats``) are those of the mesh returned.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 3)
+        The points (finite); duplicates are merged as ``build_fans`` merges them.
+    k : int, default: 6
+        Neighbours per fan.
+    tiles : tuple of 3 int, default: (2, 2, 2)
+        Tiles along x, y and z.
+    halo : float, optional
+        Width of the mesh's halo around each tile, in the points' units. Default:
+        :data:`MESH_HALO` times the halo the tile's fans needed in :func:`tiled_fans` (at
+        least their default halo: about 40 point spacings).
+    scheduler : str or dask.distributed.Client, default: 'threads'
+        As in :func:`tiled_fans`.
+    rings, close_holes, max_hole, max_hole_diameter, remove_self_intersections, \
+min_component, self_intersections
+        As in :func:`fancloud_vtk.fan_cloud_to_mesh` (``rings='fans'`` is not offered:
+        whether the fans are the one-rings of a 2-manifold is a question about all of
+        them).
+    max_angle, max_replacements, rule, rotate_sharp_edges, reach, separate_sheets
+        As in :func:`fancloud_vtk.build_fans`.
+    point_data : dict of str to array_like, optional
+        Arrays with one row per point, carried to the mesh.
+
+    Returns
+    -------
+    TriangleMesh
+        ``stats`` holds the checks of the final mesh (as ``fan_cloud_to_mesh``'s),
+        ``normals_flipped``, ``local_rings``, ``outliers``, ``final``, ``cut_pieces``,
+        ``cut_points`` and ``pieces_turned``, and ``tiles``, ``halos`` (per tile),
+        ``rebuilt`` and ``timings``; not the counts of the stages in between, which are
+        the tiles'.
+
+    Raises
+    ------
+    ValueError
+        Bad points or parameters, as ``build_fans`` and ``fan_cloud_to_mesh`` raise.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fancloud_vtk import build_fans, fan_cloud_to_mesh, tiled_mesh
+    >>> p = np.random.default_rng(0).normal(size=(20000, 3))
+    >>> p /= np.linalg.norm(p, axis=1)[:, None]
+    >>> mesh = tiled_mesh(p, tiles=(2, 2, 1), scheduler="sync")
+    >>> one = fan_cloud_to_mesh(build_fans(p))  # here the same mesh
+    >>> def rows(t):  # each triangle from its lowest point, the rows sorted
+    ...     t = np.array([np.roll(r, -int(np.argmin(r))) for r in t])
+    ...     return t[np.lexsort(t.T[::-1])]
+    >>> bool(np.array_equal(rows(mesh.triangles), rows(one.triangles)))
+    True
+    >>> bool(np.array_equal(mesh.normals, one.normals))
+    True
+    """
+    try:
+        import dask
+    except ImportError as exc:  # pragma: no cover - the test extra installs it
+        raise ImportError('tiled_mesh needs Dask: pip install "fancloud-vtk[distributed]"') \
+            from exc
+    from .core import mesh as _M
+
+    if rings == "fans":
+        raise ValueError("tiled_mesh: rings='fans' is not offered in tiles (whether the fans "
+                         "are the one-rings of a 2-manifold is a question about all of them); "
+                         "use 'auto', 'delaunay' or 'local'")
+    k, max_angle, max_replacements, rule_id, reach = _check_fan_options(
+        k, max_angle, max_replacements, rule, reach, separate_sheets=separate_sheets,
+        rotate_sharp_edges=rotate_sharp_edges)
+    max_hole_diameter = _M._check_mesh_options(rings, min_component, max_hole,
+                                               max_hole_diameter)
+    mesh_halo = None if halo is None else _check_halo(halo)
+    t_all = time.perf_counter()
+    fc = tiled_fans(points, k, tiles=tiles, scheduler=scheduler, max_angle=max_angle,
+                    max_replacements=max_replacements, rule=rule,
+                    rotate_sharp_edges=rotate_sharp_edges, reach=reach,
+                    separate_sheets=separate_sheets, point_data=point_data)
+    timings = {"fans": time.perf_counter() - t_all}
+    pts = fc.points
+    n = len(pts)
+    t0 = time.perf_counter()
+    grid = _F.Grid(pts)  # the mesh's spatial order, and the fans' (ties between distances)
+    rank = np.empty(n, np.int64)
+    rank[grid.order] = np.arange(n)
+    cells = (grid.lo, grid.h)
+    lo, hi, owner = tile_boxes(pts, tiles)
+    if mesh_halo is None:  # per tile, MESH_HALO times the halo its fans needed
+        start = MESH_HALO * np.maximum(np.asarray(fc.info["halos"], np.float64),
+                                       _auto_halo(pts, k))
+    else:
+        start = np.full(len(lo), mesh_halo)
+    timings["setup"] = time.perf_counter() - t0
+    fan_options = (k, max_angle, max_replacements, rule, rule_id, bool(rotate_sharp_edges),
+                   reach, bool(separate_sheets))
+    opts = (bool(close_holes), int(max_hole), max_hole_diameter,
+            bool(remove_self_intersections))
+    stats = {"tiles": tuple(int(x) for x in _check_tiles(tiles))}
+
+    def run(kind):
+        t0 = time.perf_counter()
+        flip = _M._mesh_flip(fc, rank, kind)
+        timings[kind + "_orientation"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        tris, normals, halos, rebuilt = _mesh_tiles(dask, scheduler, fc, rank, flip, kind,
+                                                    owner, lo, hi, start, fan_options, opts,
+                                                    cells)
+        timings[kind + "_tiles"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        base = FanCloud(pts, fc.offsets, fc.ring, normals, fc.open, fc.rotated)
+        tris, outliers = _M._outliers(base, tris, min_component)
+        timings[kind + "_outliers"] = time.perf_counter() - t0
+        return tris, outliers, flip, base, halos, rebuilt
+
+    kind = "local" if rings == "local" else "delaunay"
+    tris, outliers, flip, base, halos, rebuilt = run(kind)
+    local = kind == "local"
+    if rings == "auto":  # as fan_cloud_to_mesh decides, on the stitched mesh
+        cut, _ = _M._cut_pieces(fc, tris, {})
+        if not cut:
+            used = np.zeros(n, bool)
+            used[tris.ravel()] = True
+            cut = int(n - used.sum() - len(outliers) > 0.1 * n)
+        if cut:
+            other = run("local")
+            if _M._score(fc, other[0], other[1]) < _M._score(fc, tris, outliers):
+                tris, outliers, flip, base, halos, rebuilt = other
+                local = True
+            else:
+                rebuilt += other[5]
+    stats.update(normals_flipped=int(flip.sum()), local_rings=int(local),
+                 outliers=len(outliers), final=len(tris), halos=halos, rebuilt=rebuilt)
+    timings_all = timings
+    # (the self-intersections are counted on the stitched mesh, not assumed gone)
+    mesh = _M._conclude(fc, np.arange(n), base, tris, outliers, flip, local, stats,
+                        timings_all, close_holes, False, self_intersections)
+    timings_all["total"] = time.perf_counter() - t_all
+    return mesh
+
+
+def _mesh_tiles(dask, scheduler, fc, rank, flip, kind, owner, lo, hi, start, fan_options,
+                opts, cells):
+    """The tiles' meshes of the rings ``kind``, stitched: (triangles, the normals they were
+    grown with, the halos, the tiles built again). A tile whose band triangles (those
+    within :data:`BAND` times its halo of its box that it does not own) are not those their owners
+    made is built again, with the owners, at twice the halo."""
+    pts = fc.points
+    n = len(pts)
+    n_tiles = len(lo)
+    widths = np.array(start, np.float64)
+    todo = [t for t in range(n_tiles) if (owner == t).any()]
+    own_tris: list = [np.empty((0, 3), np.int64)] * n_tiles
+    bands: list = [np.empty((0, 3), np.int64)] * n_tiles
+    normals = fc.normals.copy()
+    full = np.zeros(n_tiles, bool)
+    rebuilt = 0
+    while todo:
+        jobs = []
+        for t in todo:
+            ids = _grown(pts, lo[t], hi[t], widths[t])
+            full[t] = len(ids) == n
+            jobs.append((pts[ids], ids, fc.normals[ids], rank[ids], flip[ids], owner[ids], t,
+                         lo[t], hi[t], BAND * widths[t], fan_options, kind, opts, cells))
+        for t, (own, band, nrm) in zip(todo, _run_tiles(dask, jobs, scheduler, _mesh_tile),
+                                       strict=True):
+            own_tris[t], bands[t] = own, band
+            normals[owner == t] = nrm
+        # each tile's band against its owners' triangles
+        stitched = np.concatenate(own_tris)
+        tri_owner = np.repeat(np.arange(n_tiles), [len(x) for x in own_tris])
+        keys = _tri_keys(stitched)
+        again = set()
+        for t in range(n_tiles):
+            if not len(own_tris[t]) and not len(bands[t]):
+                continue
+            near = np.all((pts >= lo[t] - BAND * widths[t]) & (pts <= hi[t] + BAND * widths[t]),
+                          axis=1)
+            theirs = (tri_owner != t) & near[stitched].all(axis=1)
+            made = set(_tri_keys(bands[t]).tolist())
+            want = set(keys[theirs].tolist())
+            if made != want:
+                differ = made ^ want
+                again.add(t)
+                wrong = np.isin(keys, np.fromiter(differ, np.int64, len(differ)))
+                again.update(np.unique(tri_owner[wrong]).tolist())
+        todo = sorted(t for t in again if not full[t])
+        for t in todo:
+            widths[t] *= 2.0
+        rebuilt += len(todo)
+    return np.concatenate(own_tris), normals, widths.tolist(), rebuilt
+
+
+def _tri_keys(tris) -> np.ndarray:
+    """One int64 per triangle, the same for the same triangle the same way round (a hash
+    of its points from the lowest one on; equal triangles, equal keys)."""
+    tris = np.asarray(tris, np.int64).reshape(-1, 3)
+    first = np.argmin(tris, axis=1)
+    rows = np.arange(len(tris))[:, None]
+    t = tris[rows, (first[:, None] + np.arange(3)) % 3].astype(np.uint64)
+    h = t[:, 0] * np.uint64(0x9E3779B97F4A7C15)
+    h = (h ^ (h >> np.uint64(29)) ^ t[:, 1]) * np.uint64(0xBF58476D1CE4E5B9)
+    h = (h ^ (h >> np.uint64(32)) ^ t[:, 2]) * np.uint64(0x94D049BB133111EB)
+    return (h ^ (h >> np.uint64(31))).view(np.int64)
+
+
+def _mesh_tile(sub, ids, normals, rank, flip, sub_owner, t, lo, hi, band, fan_options, kind,
+               opts, cells):
+    """One tile's mesh task: the fans of ``sub`` (the points ``ids``, sorted), turned to
+    the whole cloud's ``normals``, meshed in the whole cloud's order ``rank`` with its
+    orientation ``flip``. Returns (the triangles the tile owns, the others within ``band``
+    of its box, both in global indices; the grown-with normals of the owned points)."""
+    from .core import mesh as _M
+
+    k, max_angle, max_replacements, rule, rule_id, rotate, reach, sheets = fan_options
+    fc, _ = _F._fans(sub, k, max_angle, max_replacements, rule, rule_id, rotate, reach,
+                     sheets, None, False, {}, 1, None, cells)
+    turn = np.einsum("ij,ij->i", fc.normals, normals) < 0.0
+    if turn.any():
+        fc = _M._flipped(fc, turn)
+    tri, grown_with = _M._mesh_part(fc, rank, flip, kind, opts)
+    mine = sub_owner == t
+    own = mine[tri.min(axis=1)]  # ids are sorted: the lowest index is the lowest id
+    inside = np.all((sub >= lo - band) & (sub <= hi + band), axis=1)
+    near = ~own & inside[tri].all(axis=1)
+    return ids[tri[own]], ids[tri[near]], grown_with[mine]
 
 
 def write_tiled_fans(

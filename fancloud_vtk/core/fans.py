@@ -180,16 +180,18 @@ def build_fans(
 
 
 def _fans(pts, k, max_angle, max_replacements, rule, rule_id, rotate_sharp_edges, reach,
-          separate_sheets, given_normals, orient, pdata, workers, progress):
+          separate_sheets, given_normals, orient, pdata, workers, progress, cells=None):
     """:func:`build_fans` on checked arguments: (fan cloud, no_plane), ``no_plane`` (n,) in
     the input order (True where the fan's plane stands in for a normal the nearest points
     do not give: what the orientation needs besides the fans), or None when duplicate
-    points were merged."""
+    points were merged. ``cells``: (lo, h) of the whole cloud's grid when ``pts`` are a
+    part of it (a tile, its points in the whole cloud's order): the work then runs in the
+    whole cloud's cell order, which breaks ties between equal distances as it does."""
     n = len(pts)
     timings = {}
     t0 = time.perf_counter()
     _report(progress, 0.0, "neighbour search")
-    grid = Grid(pts)
+    grid = Grid(pts, cells)
     if grid.n_dup:
         return _merge_duplicates(
             pts, k, given_normals, pdata,
@@ -386,11 +388,14 @@ class Grid:
     #: small enough) goes to a kd-tree instead: never quadratic work
     MAX_BLOCK = 4096
 
-    def __init__(self, pts: np.ndarray):
-        self.lo, hi = G.bounds(pts)
-        # (all one point: a tile of copies of one point, whose duplicates it counts)
-        extent = float((hi - self.lo).max()) or 1.0
-        self.h = G.cell_size(pts, self.lo, extent, self.TARGET_OCCUPANCY)
+    def __init__(self, pts: np.ndarray, cells=None):
+        if cells is None:
+            self.lo, hi = G.bounds(pts)
+            # (all one point: a tile of copies of one point, whose duplicates it counts)
+            extent = float((hi - self.lo).max()) or 1.0
+            self.h = G.cell_size(pts, self.lo, extent, self.TARGET_OCCUPANCY)
+        else:  # a part of a cloud in the whole cloud's cells (a tile): the same order
+            self.lo, self.h = np.array(cells[0], np.float64), float(cells[1])
         (self.order, self.start, self.cell_xyz, self.table,
          self.n_dup) = G.build_grid(pts, self.lo, 1.0 / self.h,
                                    int(len(pts) / self.TARGET_OCCUPANCY))

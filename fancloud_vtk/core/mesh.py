@@ -271,19 +271,7 @@ def fan_cloud_to_mesh(
     n = fancloud.n_points
     if n == 0:
         raise ValueError("the fan cloud is empty: no points to mesh")
-    if rings not in RINGS:
-        raise ValueError(f"rings must be one of {', '.join(map(repr, RINGS))}, got {rings!r}")
-    if (isinstance(min_component, bool) or not isinstance(min_component, int | np.integer)
-            or min_component < 0):
-        raise ValueError(f"min_component must be an integer >= 0, got {min_component!r}")
-    if isinstance(max_hole, bool) or not isinstance(max_hole, int | np.integer) or max_hole < 3:
-        raise ValueError(f"max_hole must be an integer of at least 3 edges, got {max_hole!r}")
-    number = int | float | np.number
-    if isinstance(max_hole_diameter, bool) or not isinstance(max_hole_diameter, number):
-        raise TypeError(f"max_hole_diameter must be a number, got {max_hole_diameter!r}")
-    max_hole_diameter = float(max_hole_diameter)
-    if not 0.0 <= max_hole_diameter <= 1e6:
-        raise ValueError(f"max_hole_diameter must be between 0 and 1e6, got {max_hole_diameter}")
+    max_hole_diameter = _check_mesh_options(rings, min_component, max_hole, max_hole_diameter)
     timings = {}
     stats = {}
     # Work on the points in a spatially coherent order (the fan grid's cell
@@ -297,23 +285,7 @@ def fan_cloud_to_mesh(
 
     t0 = time.perf_counter()
     if rings in ("auto", "delaunay"):
-        width = max(MAX_RING, int(fancloud.fan_sizes.max(initial=0)))
-        counts, table = RingK.delaunay_rings(
-            fancloud.points,
-            fancloud.normals,
-            fancloud.offsets,
-            fancloud.ring,
-            fancloud.open,
-            width,
-            2 * numba.get_num_threads(),
-            np.zeros(0, np.int64),  # already in the grid's order
-            RingK.NOT_STEEP,
-            DELAUNAY_REACH,
-        )
-        offsets, ring = RingK.compact_rings(counts, table)
-        fans = FanCloud(
-            fancloud.points, offsets, ring, fancloud.normals, fancloud.open, fancloud.rotated
-        )
+        fans = _delaunay_fans(fancloud)
         timings["delaunay_rings"] = time.perf_counter() - t0
     elif rings == "local":
         fans, fancloud = _local_fans(fancloud)
@@ -326,48 +298,11 @@ def fan_cloud_to_mesh(
         return _manifold_of_rings(source, spatial, fancloud, tri, stats, timings,
                                   self_intersections)
     triangles, cand = _grow(fancloud, tri, count, stats, timings)
+    opts = (close_holes, max_hole, max_hole_diameter, remove_self_intersections)
+
     def finish(fancloud, triangles, cand, stats, timings):
         """Steps 4 and 5 and the outliers: (triangles, outliers)."""
-        t0 = time.perf_counter()
-        stats["holes_closed"] = 0
-        stats["points_inserted"] = 0
-        if close_holes:
-            triangles, closed, inserted = _close_holes(fancloud, triangles, cand, max_hole,
-                                                       max_hole_diameter)
-            split = 1
-            while split:  # two points over one triangle: the second goes in next round
-                triangles, split = _insert_unused(fancloud, triangles)
-                inserted += split
-            stats["holes_closed"] = closed
-            stats["points_inserted"] = inserted
-        timings["close_holes"] = time.perf_counter() - t0
-
-        t0 = time.perf_counter()
-        stats["self_intersections_removed"] = 0
-        if remove_self_intersections:
-            refill = None
-            if close_holes:
-                def refill(tris):
-                    tris, _, _ = _close_holes(fancloud, tris, cand, max_hole, max_hole_diameter)
-                    split = 1
-                    while split:
-                        tris, split = _insert_unused(fancloud, tris)
-                    return tris
-
-            triangles, stats["self_intersections_removed"] = _remove_intersections(
-                fancloud, triangles, refill
-            )
-        timings["self_intersections"] = time.perf_counter() - t0
-
-        t0 = time.perf_counter()
-        if close_holes and remove_self_intersections:
-            triangles, filled, inserted = _fill_rounds(fancloud, triangles, max_hole_diameter)
-            stats["holes_closed"] += filled
-            stats["points_inserted"] += inserted
-            triangles, attached = _attach_to_boundary(fancloud, triangles)
-            stats["points_inserted"] += attached
-        timings["fill_in_space"] = time.perf_counter() - t0
-
+        triangles = _finish(fancloud, triangles, cand, opts, stats, timings)
         t0 = time.perf_counter()
         triangles, outliers = _outliers(fancloud, triangles, min_component)
         stats["outliers"] = len(outliers)
@@ -409,6 +344,34 @@ def fan_cloud_to_mesh(
             fancloud, flip, triangles, outliers = fancloud2, flip2, triangles2, outliers2
             local_normals = True
 
+    return _conclude(source, spatial, fancloud, triangles, outliers, flip, local_normals, stats,
+                     timings, close_holes, remove_self_intersections, self_intersections)
+
+
+def _check_mesh_options(rings, min_component, max_hole, max_hole_diameter) -> float:
+    """ValueError/TypeError for a bad option of :func:`fan_cloud_to_mesh`; returns
+    ``max_hole_diameter`` as a float."""
+    if rings not in RINGS:
+        raise ValueError(f"rings must be one of {', '.join(map(repr, RINGS))}, got {rings!r}")
+    if (isinstance(min_component, bool) or not isinstance(min_component, int | np.integer)
+            or min_component < 0):
+        raise ValueError(f"min_component must be an integer >= 0, got {min_component!r}")
+    if isinstance(max_hole, bool) or not isinstance(max_hole, int | np.integer) or max_hole < 3:
+        raise ValueError(f"max_hole must be an integer of at least 3 edges, got {max_hole!r}")
+    number = int | float | np.number
+    if isinstance(max_hole_diameter, bool) or not isinstance(max_hole_diameter, number):
+        raise TypeError(f"max_hole_diameter must be a number, got {max_hole_diameter!r}")
+    max_hole_diameter = float(max_hole_diameter)
+    if not 0.0 <= max_hole_diameter <= 1e6:
+        raise ValueError(f"max_hole_diameter must be between 0 and 1e6, got {max_hole_diameter}")
+    return max_hole_diameter
+
+
+def _conclude(source, spatial, fancloud, triangles, outliers, flip, local_normals, stats,
+              timings, close_holes, remove_self_intersections, self_intersections):
+    """The checks of the final mesh, its closed pieces turned outward, the warnings, and
+    the :class:`TriangleMesh` (``fancloud``: in the order ``spatial`` of ``source``, with
+    the normals the triangles were grown with)."""
     t0 = time.perf_counter()
     from .mesh_stats import mesh_statistics
 
@@ -422,11 +385,87 @@ def fan_cloud_to_mesh(
         flip = flip ^ turned
     timings["checks"] = time.perf_counter() - t0
     stats["timings"] = timings
-    _warn_if_doubtful(fancloud, triangles, stats, holes=close_holes)
+    _warn_if_doubtful(fancloud, triangles, stats, holes=close_holes, stacklevel=4)
     if local_normals:  # the normals of the local rings' triangles, running with the mesh's
         return _mesh_of(source, spatial, triangles, stats, outliers,
                         normals=_along(fancloud.normals, fancloud.points, triangles))
     return _mesh_of(source, spatial, triangles, stats, outliers, flip)
+
+
+# -- the mesh of a part of a cloud (fancloud_vtk.distributed.tiled_mesh) ----------------
+#
+# Every stage after the orientation decides from what lies near: the growing, the holes,
+# the self-intersections, the filling. Its ties are broken by the points' order, so a part
+# of the cloud meshed in the whole cloud's spatial order (``rank``) with the whole cloud's
+# orientation (``flip``) gives the whole cloud's triangles away from the part's edge.
+
+
+def _ordered(fc: FanCloud, order: np.ndarray) -> FanCloud:
+    """``fc`` relabelled so that point i is fc's point ``order[i]`` (geometry and rings)."""
+    pos = np.empty(len(order), np.int64)
+    pos[order] = np.arange(len(order))
+    offsets, ring = RingK.relabel_rings(fc.offsets, fc.ring, order, pos)
+    return FanCloud(fc.points[order], offsets, ring, fc.normals[order], fc.open[order],
+                    fc.rotated[order])
+
+
+def _mesh_rings(fc: FanCloud, kind: str) -> tuple[FanCloud, FanCloud]:
+    """(rings, fan cloud) the triangles come from: ``kind`` 'delaunay' or 'local'."""
+    if kind == "delaunay":
+        return _delaunay_fans(fc), fc
+    return _local_fans(fc)
+
+
+def _mesh_flip(fancloud: FanCloud, rank: np.ndarray, kind: str) -> np.ndarray:
+    """The normals the mesh of the rings ``kind`` orients again (a mask in ``fancloud``'s
+    order): the whole cloud's step of :func:`_distinct`."""
+    order = np.argsort(rank, kind="stable")
+    fans, fc = _mesh_rings(_ordered(fancloud, order), kind)
+    flip = _distinct(fans, fc, True, {}, {}, time.perf_counter())[2]
+    out = np.zeros(len(order), bool)
+    out[order] = flip
+    return out
+
+
+def _mesh_part(fancloud: FanCloud, rank, flip, kind: str, opts):
+    """The triangles (indices of ``fancloud``, oriented) of the part ``fancloud`` of a
+    cloud, grown and finished as the whole cloud's mesh is (``rank``, ``flip``: the whole
+    cloud's, at these points; ``opts`` as :func:`_finish` takes them), before the outliers;
+    and the normals the triangles were grown with (in ``fancloud``'s order)."""
+    order = np.argsort(rank, kind="stable")
+    fans, fc = _mesh_rings(_ordered(fancloud, order), kind)
+    f = flip[order]
+    if f.any():
+        fans = _flipped(fans, f)
+        fc = _flipped(fc, f)
+    tri, count, _, _ = MK.distinct_triangles(fans.offsets, fans.ring, fans.open)
+    stats, timings = {}, {}
+    triangles, cand = _grow(fc, tri, count, stats, timings)
+    triangles = _finish(fc, triangles, cand, opts, stats, timings)
+    normals = np.empty_like(fc.normals)
+    normals[order] = fc.normals
+    return order[triangles], normals
+
+
+def _delaunay_fans(fancloud: FanCloud) -> FanCloud:
+    """Every fan's ring replaced by its local Delaunay ring (``rings='delaunay'``); the
+    fan cloud is in its spatial order."""
+    width = max(MAX_RING, int(fancloud.fan_sizes.max(initial=0)))
+    counts, table = RingK.delaunay_rings(
+        fancloud.points,
+        fancloud.normals,
+        fancloud.offsets,
+        fancloud.ring,
+        fancloud.open,
+        width,
+        2 * numba.get_num_threads(),
+        np.zeros(0, np.int64),  # already in the grid's order
+        RingK.NOT_STEEP,
+        DELAUNAY_REACH,
+    )
+    offsets, ring = RingK.compact_rings(counts, table)
+    return FanCloud(fancloud.points, offsets, ring, fancloud.normals, fancloud.open,
+                    fancloud.rotated)
 
 
 def _distinct(fans: FanCloud, fancloud: FanCloud, orient: bool, stats, timings, t0):
@@ -601,6 +640,53 @@ def _grow(fancloud: FanCloud, tri, count, stats, timings):
 
     cand = (tri, count, edge_uv, edge_off, edge_tri, v_edge_off, v_edges)
     return triangles, cand
+
+
+def _finish(fancloud: FanCloud, triangles, cand, opts, stats, timings):
+    """Steps 4 and 5 after the growing: the holes closed, the self-intersections removed
+    and their holes filled in space, the unused points put in (``opts``: close_holes,
+    max_hole, max_hole_diameter, remove_self_intersections). Returns the triangles."""
+    close_holes, max_hole, max_hole_diameter, remove_self_intersections = opts
+    t0 = time.perf_counter()
+    stats["holes_closed"] = 0
+    stats["points_inserted"] = 0
+    if close_holes:
+        triangles, closed, inserted = _close_holes(fancloud, triangles, cand, max_hole,
+                                                   max_hole_diameter)
+        split = 1
+        while split:  # two points over one triangle: the second goes in next round
+            triangles, split = _insert_unused(fancloud, triangles)
+            inserted += split
+        stats["holes_closed"] = closed
+        stats["points_inserted"] = inserted
+    timings["close_holes"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    stats["self_intersections_removed"] = 0
+    if remove_self_intersections:
+        refill = None
+        if close_holes:
+            def refill(tris):
+                tris, _, _ = _close_holes(fancloud, tris, cand, max_hole, max_hole_diameter)
+                split = 1
+                while split:
+                    tris, split = _insert_unused(fancloud, tris)
+                return tris
+
+        triangles, stats["self_intersections_removed"] = _remove_intersections(
+            fancloud, triangles, refill
+        )
+    timings["self_intersections"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    if close_holes and remove_self_intersections:
+        triangles, filled, inserted = _fill_rounds(fancloud, triangles, max_hole_diameter)
+        stats["holes_closed"] += filled
+        stats["points_inserted"] += inserted
+        triangles, attached = _attach_to_boundary(fancloud, triangles)
+        stats["points_inserted"] += attached
+    timings["fill_in_space"] = time.perf_counter() - t0
+    return triangles
 
 
 def _local_rings(fc: FanCloud, fans: FanCloud, which=None) -> FanCloud:
@@ -1017,7 +1103,7 @@ def _cut_pieces(fc: FanCloud, triangles, stats) -> tuple[int, int]:
     return int(pieces), int(size.sum() - largest[np.unique(owner)].sum())
 
 
-def _warn_if_doubtful(fc: FanCloud, triangles, stats, holes=True) -> None:
+def _warn_if_doubtful(fc: FanCloud, triangles, stats, holes=True, stacklevel=3) -> None:
     """A :class:`DoubtfulMeshWarning` for each sign that the mesh is not the surface
     (holes between closed fans only when they were to be closed: ``holes``)."""
     import warnings
@@ -1051,7 +1137,8 @@ def _warn_if_doubtful(fc: FanCloud, triangles, stats, holes=True) -> None:
     if removed > max(10, 0.01 * max(len(triangles), 1)):
         said.append(f"{removed} self-intersecting triangles were removed")
     for text in said:
-        warnings.warn(f"fan_cloud_to_mesh: {text}", DoubtfulMeshWarning, stacklevel=3)
+        warnings.warn(f"fan_cloud_to_mesh: {text}", DoubtfulMeshWarning,
+                      stacklevel=stacklevel)
 
 
 def _remove_intersections(fc: FanCloud, triangles, refill, rounds=3):
