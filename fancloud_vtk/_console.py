@@ -74,7 +74,8 @@ def _print_mesh_summary(mesh, elapsed, path=None, extra=()) -> None:
     for key, label in (("fan_triangles", "fan triangles"), ("distinct", "distinct"),
                        ("after_superfluous", "after superfluous removal"),
                        ("grown", "grown 2-manifold"), ("final", "final (holes closed)")):
-        rows.append((label, f"{s[key]:,} ({s[key] / n:.3f} per point)"))
+        if key in s:  # (a mesh grown in tiles has no counts of the stages in between)
+            rows.append((label, f"{s[key]:,} ({s[key] / n:.3f} per point)"))
     for key in ("normals_flipped", "holes_closed", "points_inserted", "self_intersections_removed",
                 "boundary_edges", "holes", "non_manifold_edges", "non_manifold_vertices",
                 "inconsistent_edges", "self_intersections", "unused_points", "outliers",

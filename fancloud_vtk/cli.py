@@ -266,6 +266,9 @@ def cmd_fans(args) -> int:
 def cmd_mesh(args) -> int:
     from fancloud_vtk.algorithms.convert import MESH_FORMATS, result_to_vtk, write_mesh
 
+    if args.tiles is not None:
+        return cmd_mesh_tiled(args)
+    _tiles_only(args)
     _check_output(args.output, MESH_FORMATS)
     result, t_read, t_mesh = _run_verb(
         "mesh", args, _params(args, VERB_PARAMS["mesh"]),
@@ -375,6 +378,61 @@ def cmd_reduce_tiled(args) -> int:
     rows.append(("written", args.output))
     if not args.quiet:
         _print_rows(rows)
+    return 0
+
+
+def cmd_mesh_tiled(args) -> int:
+    """``fancloud mesh BIG -o OUT --tiles ...``: the mesh grown in tiles with halos on Dask
+    (:func:`fancloud_vtk.distributed.tiled_mesh`), the same mesh as one process's, written
+    as one file; the points are read whole."""
+    from fancloud_vtk.algorithms.convert import MESH_FORMATS, mesh_to_vtk, write_mesh
+    from fancloud_vtk.distributed import _auto_tiles, _client_for, tiled_mesh
+    from fancloud_vtk.io import read_point_cloud
+
+    _check_output(args.output, MESH_FORMATS)
+    _check_scheduler(args)
+    values = _params(args, VERB_PARAMS["mesh"])
+    if not values["orient"]:
+        raise ValueError("--no-orient does not go with --tiles (the mesh is oriented)")
+    if values["rings"] == "fans":
+        raise ValueError("--rings fans does not go with --tiles (whether the fans are the "
+                         "one-rings of a 2-manifold is a question about all of them)")
+    t0 = time.perf_counter()
+    src = read_point_cloud(args.input)
+    points, data = src.points, dict(src.point_data)
+    dropped = 0
+    if src.faces is not None and len(src.faces) and not values["keep_unreferenced"]:
+        used = np.zeros(len(points), bool)  # the vertices a face uses, as the verb does
+        used[src.faces.ravel()] = True
+        dropped = int((~used).sum())
+        points = points[used]
+        data = {name: arr[used] for name, arr in data.items()}
+    data.pop("Normals", None)  # the mesh's normals are its own
+    t_read = time.perf_counter() - t0
+    tiles = args.tiles
+    if isinstance(tiles, str):
+        tiles = tuple(int(v) for v in _auto_tiles(len(points), points.min(axis=0),
+                                                   points.max(axis=0), args.tile_points))
+    client, close = _client_for(args.scheduler, args.workers)
+    t0 = time.perf_counter()
+    try:
+        names = ("k", "max_angle", "max_replacements", "rule", "rotate_sharp_edges", "reach",
+                 "separate_sheets", "rings", "close_holes", "max_hole", "max_hole_diameter",
+                 "remove_self_intersections", "min_component", "self_intersections")
+        mesh = tiled_mesh(points, tiles=tiles, scheduler=client, point_data=data,
+                          **{name: values[name] for name in names})
+    finally:
+        if close is not None:
+            close()
+    t_mesh = time.perf_counter() - t0
+    write_mesh(mesh_to_vtk(mesh), args.output)
+    if not args.quiet:
+        extra = [("unreferenced dropped", f"{dropped:,}")] if dropped else []
+        extra += [("tiles", "x".join(str(v) for v in mesh.stats["tiles"])),
+                  ("halo", f"{min(mesh.stats['halos']):.4g} to "
+                           f"{max(mesh.stats['halos']):.4g}"),
+                  ("tiles built again", f"{mesh.stats['rebuilt']:,}")]
+        _print_mesh_summary(mesh, t_read + t_mesh, args.output, extra)
     return 0
 
 
@@ -680,6 +738,8 @@ def make_parser() -> argparse.ArgumentParser:
     p.add_argument("input", help="a fan cloud .vtp, or a point cloud / mesh file (fans are built)")
     p.add_argument("-o", "--output", required=True, help="output mesh (.ply .obj .vtp .stl .vtk)")
     _add_params(p, VERB_PARAMS["mesh"])
+    _add_tile_options(p, "tiles (the mesh grown in tiles with halos on Dask: the same mesh "
+                      "as one process's; the points are read whole)", "grow the mesh")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar or summary")
     p.set_defaults(func=cmd_mesh)
 
