@@ -55,6 +55,17 @@ OPEN_MARGIN = 6.0
 _HALO_SAMPLE = 20_000
 
 
+def _dask(name: str):
+    """The ``dask`` module, or an ImportError saying that ``name`` needs it (an optional
+    dependency)."""
+    try:
+        import dask
+    except ImportError as exc:  # pragma: no cover - the test extra installs it
+        raise ImportError(f'{name} needs Dask: pip install "fancloud-vtk[distributed]"') \
+            from exc
+    return dask
+
+
 def tile_boxes(points, tiles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The tiles of the points' bounding box and the tile that owns each point.
 
@@ -171,11 +182,7 @@ point_data
     >>> bool(np.array_equal(fc.ring, one.ring) and np.array_equal(fc.normals, one.normals))
     True
     """
-    try:
-        import dask
-    except ImportError as exc:  # pragma: no cover - the test extra installs it
-        raise ImportError('tiled_fans needs Dask: pip install "fancloud-vtk[distributed]"') \
-            from exc
+    dask = _dask("tiled_fans")
     k, max_angle, max_replacements, rule_id, reach = _check_fan_options(
         k, max_angle, max_replacements, rule, reach, separate_sheets=separate_sheets,
         orient=orient, rotate_sharp_edges=rotate_sharp_edges)
@@ -523,11 +530,7 @@ min_component, self_intersections
     >>> bool(np.array_equal(mesh.normals, one.normals))
     True
     """
-    try:
-        import dask
-    except ImportError as exc:  # pragma: no cover - the test extra installs it
-        raise ImportError('tiled_mesh needs Dask: pip install "fancloud-vtk[distributed]"') \
-            from exc
+    dask = _dask("tiled_mesh")
     from .core import mesh as _M
 
     if rings == "fans":
@@ -818,11 +821,7 @@ def write_tiled_fans(
     import os
     import shutil
 
-    try:
-        import dask
-    except ImportError as exc:  # pragma: no cover - the test extra installs it
-        raise ImportError('write_tiled_fans needs Dask: pip install '
-                          '"fancloud-vtk[distributed]"') from exc
+    dask = _dask("write_tiled_fans")
     k, max_angle, max_replacements, rule_id, reach = _check_fan_options(
         k, max_angle, max_replacements, rule, reach, separate_sheets=separate_sheets,
         rotate_sharp_edges=rotate_sharp_edges)
@@ -1651,11 +1650,7 @@ def tiled_reduce(
     >>> small.n_points
     8000
     """
-    try:
-        import dask
-    except ImportError as exc:  # pragma: no cover - the test extra installs it
-        raise ImportError('tiled_reduce needs Dask: pip install "fancloud-vtk[distributed]"') \
-            from exc
+    dask = _dask("tiled_reduce")
     import os
 
     from .core.reduction import target_count
@@ -2008,11 +2003,7 @@ def tiled_vdfc(
     >>> bool(np.array_equal(vd.children, one.children) and np.array_equal(vd.error, one.error))
     True
     """
-    try:
-        import dask
-    except ImportError as exc:  # pragma: no cover - the test extra installs it
-        raise ImportError('tiled_vdfc needs Dask: pip install "fancloud-vtk[distributed]"') \
-            from exc
+    dask = _dask("tiled_vdfc")
     from .core.mesh import TriangleMesh
     from .core.vdfc import VDFC_WEIGHTS, ViewDependentFanCloud, point_blocks
 

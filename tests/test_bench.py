@@ -616,14 +616,19 @@ def test_bench_tiles_compares_the_tiles_with_one_process(tmp_path, capsys):
     assert cli_main(["bench", "tiles", "--sizes", "30k", "--tiles", "2,2,1", "--modes", "one",
                      "threads", "files", "--workers", "1", "--tile-points", "10000",
                      "--extrapolate", "1M", "--extrapolate-workers", "2,4",
-                     "--reduce", "20k", "--out", str(out), "-q"]) == 0
+                     "--reduce", "20k", "--mesh", "20k", "--out", str(out), "-q"]) == 0
     res = json.loads((out / "tiles.json").read_text())
     by_figure = {r["figure"]: r for r in res["rows"]}
     same = by_figure["tiles: same fan cloud as one process, tiled_fans 2x2x1, Dask threads"]
     assert same["measured"] == "yes" and same["verdict"] == "yes"
     assert float(by_figure["tiles: wall time, one process, build_fans"]["measured"]) > 0
     assert "tiles: ratio tiled_fans 2x2x1, Dask threads / one process" in by_figure
-    assert {r["mode"] for r in res["runs"]} == {"one", "threads", "files", "blocks", "file"}
+    assert {r["mode"] for r in res["runs"]} == {"one", "threads", "files", "blocks", "file",
+                                               "cluster"}
+    for name in ("tiled_mesh 2x2x1, Dask threads",
+                 "tiled_mesh 2x2x1, LocalCluster 1 workers x 1 thread"):  # the mesh in tiles
+        assert by_figure[f"tiles: same mesh as one process, {name}"]["measured"] == "yes"
+        assert float(by_figure[f"tiles: mesh wall time, {name} / one process"]["measured"]) > 0
     mean = by_figure["tiles: reduction mean distance, tiled_reduce 2x2x1, Dask threads / "
                      "one process"]
     assert float(mean["measured"]) > 0 and mean["verdict"] in ("yes", "NO")

@@ -1,5 +1,6 @@
 """``fancloud bench tiles``: the fans of a large cloud in tiles on Dask against one process,
-and the reduction in blocks (``tiled_reduce``) against one process's.
+the reduction in blocks (``tiled_reduce``) and the mesh in tiles (``tiled_mesh``, with
+``--mesh N``) against one process's.
 
 For each size, three fresh processes build the fans of the same random points on the
 bumpy sphere: ``build_fans`` in one process, ``tiled_fans`` on Dask's threads, and
@@ -253,6 +254,110 @@ def child_reduce(n: int, seed: int, keep: float, tiles: list, mode: str) -> dict
     return out
 
 
+def child_mesh(n: int, seed: int, tiles: list, mode: str, workers: int) -> dict:
+    """The mesh of ``n`` bumpy-sphere points: ``fan_cloud_to_mesh(build_fans(p))`` in one
+    process, or ``tiled_mesh`` on Dask's threads or on a LocalCluster; timed end to end
+    (warm), then a digest of its triangles (each from its lowest point, sorted) and normals,
+    and the triangles themselves' keys for the difference."""
+    import warnings
+
+    import numpy as np
+
+    from fancloud_vtk import build_fans, fan_cloud_to_mesh, tiled_mesh
+    from fancloud_vtk.distributed import _tri_keys
+
+    pts = surface_points(n, seed, "bumpy")
+    small = surface_points(20_000, seed + 1, "bumpy")
+    client = cluster = None
+    out = {"mode": mode, "n": n}
+    if mode == "one":
+        def run(p):
+            return fan_cloud_to_mesh(build_fans(p))
+    elif mode == "threads":
+        def run(p):
+            return tiled_mesh(p, tiles=tuple(tiles), scheduler="threads")
+    else:
+        from dask.distributed import Client, LocalCluster
+
+        t0 = time.perf_counter()
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+        client = Client(cluster)
+        out["cluster_start"] = time.perf_counter() - t0
+
+        def run(p):
+            return tiled_mesh(p, tiles=tuple(tiles), scheduler=client)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            run(small)  # kernels loaded (on the cluster, in every worker)
+            before = _peak_mb()
+            t0 = time.perf_counter()
+            mesh = run(pts)
+            out["time"] = time.perf_counter() - t0
+        out["peak_before_mb"] = before
+        out["peak_mb"] = _peak_mb()
+        if client is not None:
+            out["worker_peak_mb"] = sorted(client.run(_peak_mb).values())
+    finally:
+        if client is not None:
+            client.close()
+            cluster.close()
+    keys = np.sort(_tri_keys(mesh.triangles))
+    h = hashlib.sha1()
+    for a in (keys, mesh.normals, mesh.outliers):
+        h.update(np.ascontiguousarray(a).tobytes())
+    out["digest"] = h.hexdigest()
+    out["keys"] = keys.tolist()
+    out["triangles"] = len(mesh.triangles)
+    for key in ("boundary_edges", "non_manifold_edges", "self_intersections", "rebuilt"):
+        if key in mesh.stats:
+            out[key] = int(mesh.stats[key])
+    return out
+
+
+def _mesh_rows(args, tiles, got) -> list[dict]:
+    import numpy as np
+
+    data = data_label(args.mesh, "bumpy", args.seed)
+    one = got["one"]
+    rows = []
+    t = "x".join(str(v) for v in tiles)
+    names = {"one": "one process, fan_cloud_to_mesh(build_fans)",
+             "threads": f"tiled_mesh {t}, Dask threads",
+             "cluster": f"tiled_mesh {t}, LocalCluster {args.workers} workers x 1 thread"}
+    ref = np.asarray(one["keys"], np.int64)
+    for mode, r in got.items():
+        extra = f"; cluster start {r['cluster_start']:.1f} s (not in the time)" \
+            if "cluster_start" in r else ""
+        if "rebuilt" in r:
+            extra += f"; {r['rebuilt']} tile(s) built again"
+        rows.append(_row(f"tiles: mesh wall time, {names[mode]}", data,
+                         "end to end (fans included), warm, best of 1" + extra,
+                         _num(r["time"]), "s"))
+        rows.append(_row(f"tiles: mesh peak memory, {names[mode]}", data,
+                         f"the calling process (before the call {r['peak_before_mb']:.0f} MiB)",
+                         _num(r["peak_mb"]), "MiB"))
+        if "worker_peak_mb" in r:
+            rows.append(_row(f"tiles: mesh peak memory per worker, {names[mode]}", data,
+                             "largest of the workers; all: " + ", ".join(
+                                 f"{x:.0f}" for x in r["worker_peak_mb"]) + " MiB",
+                             _num(max(r["worker_peak_mb"])), "MiB"))
+        if mode == "one":
+            continue
+        rows.append(_row(f"tiles: mesh wall time, {names[mode]} / one process", data,
+                         "wall times above", f"{r['time'] / one['time']:.3f}", "x"))
+        keys = np.asarray(r["keys"], np.int64)
+        differ = len(np.setxor1d(keys, ref))
+        same = r["digest"] == one["digest"]
+        rows.append(_row(f"tiles: same mesh as one process, {names[mode]}", data,
+                         f"digest of the triangles (each the same way round), normals and "
+                         f"outliers; triangles in one mesh only: {differ:,} of "
+                         f"{one['triangles']:,}", "yes" if same else "no", "", "yes",
+                         "yes" if same else "NO"))
+    return rows
+
+
 def _reduce_rows(args, tiles, one, blocks, file=None) -> list[dict]:
     big, small = TORUS
     data = (f"torus R = {big}, r = {small}, {size_label(args.reduce)} points uniform by area "
@@ -388,6 +493,15 @@ def run_tiles(args, argv: list[str]) -> dict:
                 "mode": mode})
             runs.append(got[mode])
         rows += _reduce_rows(args, tiles, got["one"], got["blocks"], got["file"])
+    if args.mesh:
+        got = {}
+        for mode in ("one", "threads", "cluster"):
+            _log(args.quiet, f"mesh of {size_label(args.mesh)} points: {mode}")
+            got[mode] = run_task(f"{_HERE}:child_mesh", {
+                "n": args.mesh, "seed": args.seed, "tiles": tiles, "mode": mode,
+                "workers": args.workers})
+        rows += _mesh_rows(args, tiles, got)
+        runs += [{k: v for k, v in r.items() if k != "keys"} for r in got.values()]
     if files_run is not None and args.extrapolate:
         res["extrapolation"] = extrapolate(files_run, args.extrapolate,
                                            args.extrapolate_workers)
@@ -494,6 +608,10 @@ def add_parser(sub) -> argparse.ArgumentParser:
                    default=200_000, help="the blocked reduction (tiled_reduce) against one "
                    "process on this many torus points, in the --tiles blocks (default: 200k; "
                    "0: not run)")
+    p.add_argument("--mesh", type=lambda t: 0 if t == "0" else parse_sizes(t)[0], default=0,
+                   help="the mesh in tiles (tiled_mesh) against one process on this many "
+                   "bumpy-sphere points, in the --tiles tiles, on threads and on the "
+                   "LocalCluster (default: 0, not run)")
     p.add_argument("--keep", type=float, default=0.2,
                    help="the blocked reduction's kept fraction (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: %(default)s)")
