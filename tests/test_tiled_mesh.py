@@ -67,15 +67,15 @@ def tiled(points, **kw):
 
 
 CLOUDS = {
-    "sphere": lambda: sphere(30_000, seed=7),
-    "torus": lambda: torus(30_000),
-    "cube": lambda: cube_surface(30_000),
-    "sheet_with_gap": lambda: sheet_with_gap(30_000),
+    "sphere": lambda: sphere(20_000, seed=7),
+    "torus": lambda: torus(20_000),
+    "cube": lambda: cube_surface(20_000),
+    "sheet_with_gap": lambda: sheet_with_gap(20_000),
 }
 
 
 @pytest.mark.parametrize("name, tiles", [(name, (2, 2, 2)) for name in sorted(CLOUDS)]
-                         + [("sphere", (4, 4, 1)), ("sheet_with_gap", (4, 4, 1))])
+                         + [("sphere", (4, 4, 1))])
 def test_the_tiled_mesh_is_that_of_one_process(name, tiles):
     points = CLOUDS[name]()
     before = fingerprint(points)
@@ -98,11 +98,13 @@ def test_the_cow_in_tiles_is_the_cow_of_one_process():
             fc = tiled_fans(points, tiles=tiles, scheduler="sync")
             assert np.array_equal(fc.ring, fans.ring) and np.array_equal(fc.normals,
                                                                          fans.normals)
-    for rings in ["auto", "delaunay"]:
+    local = []
+    for rings in ["auto", "delaunay"]:  # (the cow is small: each tile's halo holds most of it)
         one = one_mesh(points, rings=rings)
-        mesh = tiled(points, tiles=(2, 2, 2), rings=rings)
+        mesh = tiled(points, tiles=(2, 1, 1), rings=rings)
         assert same_mesh(mesh, one), rings
-    assert mesh.stats["local_rings"] == 0 and one_mesh(points).stats["local_rings"] == 1
+        local.append(mesh.stats["local_rings"])
+    assert local == [1, 0]  # auto: the local rings, as in one process
     np.testing.assert_array_equal(mesh.point_data["original_id"],
                                   one.point_data["original_id"])
 
@@ -125,7 +127,7 @@ def test_where_a_tile_chooses_another_filling_round_the_mesh_differs_a_little():
 
 
 def test_halos_at_and_above_the_default_and_a_narrow_one_grown():
-    points = torus(40_000, seed=8)
+    points = torus(20_000, seed=8)
     one = one_mesh(points)
     default = D.MESH_HALO * D._auto_halo(points, 6)
     for halo in [default, 1.5 * default]:
