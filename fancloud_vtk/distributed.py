@@ -1500,8 +1500,10 @@ def _client_for(scheduler, workers):
                                     not isinstance(workers, int | np.integer) or workers < 1):
             raise FanCloudInputError(f"workers must be a positive integer, got {workers!r}")
         nw = int(workers) if workers is not None else (os.cpu_count() or 1)
+        # the dashboard (or Dask's HTTP server without it) on a free port: at the fixed
+        # default one, a cluster already running makes the start warn or fail
         cluster = LocalCluster(n_workers=nw, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               dashboard_address=":0")
         client = Client(cluster)
 
         def close():

@@ -6,6 +6,7 @@ import warnings
 import numpy as np
 import pytest
 from conftest import fingerprint
+from dask_helpers import local_cluster
 
 import fancloud_vtk.distributed as D
 from fancloud_vtk import FanCloudInputError, build_fans, tile_boxes, tiled_fans, tiled_reduce
@@ -160,13 +161,11 @@ def test_without_the_margin_the_tiles_differ(monkeypatch):
 
 
 def test_threads_and_a_local_cluster_give_the_same_fans():
-    distributed = pytest.importorskip("dask.distributed")
+    pytest.importorskip("dask.distributed")
     points = sphere(40_000, seed=3)
     one = build_fans(points)
     assert same(tiled_fans(points, tiles=(2, 2, 1), scheduler="threads"), one)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
+    with local_cluster(2) as (cluster, client):
         assert same(tiled_fans(points, tiles=(2, 2, 1), scheduler=client), one)
         # a scheduler address connects a client of its own
         assert same(tiled_fans(points, tiles=(2, 1, 1), scheduler=cluster.scheduler_address),
@@ -288,12 +287,10 @@ def test_nan_and_bad_scheduler_are_refused():
 def test_a_worker_killed_mid_run_leaves_the_same_fans():
     """A LocalCluster worker process killed while tiles are running: Dask runs its tiles
     again elsewhere, and the fan cloud is still build_fans'."""
-    distributed = pytest.importorskip("dask.distributed")
+    pytest.importorskip("dask.distributed")
     points = sphere(400_000, seed=7)
     one = build_fans(points)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
+    with local_cluster(2) as (cluster, client):
         tiled_fans(points[:20_000], tiles=(2, 1, 1), scheduler=client)  # kernels loaded
         out = kill_a_worker_while(client, lambda: tiled_fans(points, tiles=(4, 2, 1),
                                                              scheduler=client))
@@ -524,12 +521,10 @@ def test_a_worker_killed_while_writing_tiles_leaves_a_complete_folder(tmp_path):
     """A LocalCluster worker killed while tiles run: its tiles run again elsewhere, the
     folder holds the index, the .vtpd and one file per tile, nothing half-written, and it
     reads back as build_fans' fan cloud."""
-    distributed = pytest.importorskip("dask.distributed")
+    pytest.importorskip("dask.distributed")
     points = sphere(300_000, seed=9)
     one = build_fans(points)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
+    with local_cluster(2) as (cluster, client):
         D.write_tiled_fans(points[:20_000], tmp_path / "warm", tiles=(2, 1, 1),
                            scheduler=client)  # kernels loaded
         index = kill_a_worker_while(client, lambda: D.write_tiled_fans(
@@ -703,7 +698,7 @@ def test_the_reduce_command_in_tiles_on_a_scheduler_address(tmp_path, capsys):
     of tiled_reduce on a cluster given by its address, the same points as on Dask's
     synchronous scheduler; ``--mesh`` writes the mesh of the result; options the blocks do
     not take, and --scheduler without --tiles or not an address, are usage errors."""
-    distributed = pytest.importorskip("dask.distributed")
+    pytest.importorskip("dask.distributed")
     from fancloud_vtk import DuplicatePointsWarning
     from fancloud_vtk.algorithms.convert import fancloud_from_vtk, read_vtp
     from fancloud_vtk.cli import main
@@ -713,8 +708,7 @@ def test_the_reduce_command_in_tiles_on_a_scheduler_address(tmp_path, capsys):
     # three duplicates: merged with a warning (the first of each kept), as build_fans does
     np.save(tmp_path / "big.npy", np.concatenate([points, points[[5, 9, 5]]]))
     ref = tiled_reduce(points, keep=0.2, tiles=(2, 1, 1), scheduler="sync")
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+    with local_cluster(1) as (cluster, _):
         out = tmp_path / "small.vtp"
         with warnings.catch_warnings():  # the command prints them, one line each
             warnings.simplefilter("default", DuplicatePointsWarning)
@@ -782,7 +776,7 @@ def test_the_forests_blocks_as_dask_tasks_give_the_forest_of_threads():
     blocks, a terrain's blocks, a point set whose fans are built in tiles), on the
     synchronous and threaded schedulers and on a LocalCluster of 2 processes: the forest of
     ViewDependentFanCloud.build with the same blocks (threads), array for array."""
-    distributed = pytest.importorskip("dask.distributed")
+    pytest.importorskip("dask.distributed")
     from fancloud_vtk import (
         ViewDependentFanCloud,
         point_blocks,
@@ -808,7 +802,5 @@ def test_the_forests_blocks_as_dask_tasks_give_the_forest_of_threads():
                     progress=lambda f, m: done.append(f))
     assert same_forest(vd, ref) and len(vd.roots) == len(ref.roots)
     assert done == sorted(done) and done[-1] == 1.0
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
+    with local_cluster(2) as (cluster, client):
         assert same_forest(tiled_vdfc(fc, blocks=blocks, scheduler=client), one)

@@ -7,6 +7,7 @@ import warnings
 import numpy as np
 import pytest
 from conftest import fingerprint
+from dask_helpers import local_cluster
 from test_distributed import cube_surface, sphere
 
 import fancloud_vtk.distributed as D
@@ -142,13 +143,11 @@ def test_halos_at_and_above_the_default_and_a_narrow_one_grown():
 
 
 def test_threads_and_a_local_cluster_give_the_same_mesh():
-    distributed = pytest.importorskip("dask.distributed")
+    pytest.importorskip("dask.distributed")
     points = sphere(20_000, seed=9)
     one = one_mesh(points)
     assert same_mesh(tiled(points, tiles=(2, 2, 1), scheduler="threads"), one)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
+    with local_cluster(2) as (cluster, client):
         assert same_mesh(tiled(points, tiles=(2, 2, 1), scheduler=client), one)
 
 

@@ -54,6 +54,7 @@ def child_tiles(n: int, seed: int, tiles: list, mode: str, workers: int, repeat:
     import numpy as np
 
     from fancloud_vtk import build_fans, tiled_fans
+    from fancloud_vtk.distributed import _client_for
 
     pts = surface_points(n, seed, "bumpy")
     small = surface_points(20_000, seed + 1, "bumpy")
@@ -70,12 +71,8 @@ def child_tiles(n: int, seed: int, tiles: list, mode: str, workers: int, repeat:
                         for _ in range(repeat)]
         fc = tiled_fans(pts, tiles=tuple(tiles), scheduler="threads")
     else:
-        from dask.distributed import Client, LocalCluster
-
         t0 = time.perf_counter()
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
-        client = Client(cluster)
+        client, close = _client_for(None, workers)
         out["cluster_start"] = time.perf_counter() - t0
         try:
             tiled_fans(small, tiles=tuple(tiles), scheduler=client)
@@ -85,8 +82,7 @@ def child_tiles(n: int, seed: int, tiles: list, mode: str, workers: int, repeat:
             fc = tiled_fans(pts, tiles=tuple(tiles), scheduler=client)
             out["worker_peak_mb"] = sorted(client.run(_peak_mb).values())
         finally:
-            client.close()
-            cluster.close()
+            close()
     out["time"] = min(out["times"])
     out["peak_mb"] = _peak_mb()
     out["peak_before_mb"] = before
@@ -120,14 +116,10 @@ def child_files(n: int, seed: int, path: str, tile_points: int, workers: int,
     import shutil
     import tempfile
 
-    from dask.distributed import Client, LocalCluster
-
-    from fancloud_vtk.distributed import read_tiles, write_tiled_fans
+    from fancloud_vtk.distributed import _client_for, read_tiles, write_tiled_fans
 
     t0 = time.perf_counter()
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=None)
-    client = Client(cluster)
+    client, close = _client_for(None, workers)
     out = {"mode": "files", "n": n, "cluster_start": time.perf_counter() - t0}
     folder = tempfile.mkdtemp(prefix="fancloud_tiles_")
     try:
@@ -159,8 +151,7 @@ def child_files(n: int, seed: int, path: str, tile_points: int, workers: int,
         out["digest"] = digest(fc.offsets, fc.ring, fc.normals, fc.open, fc.rotated)
         out["fans_open"] = int(fc.open.sum())
     finally:
-        client.close()
-        cluster.close()
+        close()
         shutil.rmtree(folder, ignore_errors=True)
     return out
 
@@ -264,11 +255,11 @@ def child_mesh(n: int, seed: int, tiles: list, mode: str, workers: int) -> dict:
     import numpy as np
 
     from fancloud_vtk import build_fans, fan_cloud_to_mesh, tiled_mesh
-    from fancloud_vtk.distributed import _tri_keys
+    from fancloud_vtk.distributed import _client_for, _tri_keys
 
     pts = surface_points(n, seed, "bumpy")
     small = surface_points(20_000, seed + 1, "bumpy")
-    client = cluster = None
+    client = close = None
     out = {"mode": mode, "n": n}
     if mode == "one":
         def run(p):
@@ -277,12 +268,8 @@ def child_mesh(n: int, seed: int, tiles: list, mode: str, workers: int) -> dict:
         def run(p):
             return tiled_mesh(p, tiles=tuple(tiles), scheduler="threads")
     else:
-        from dask.distributed import Client, LocalCluster
-
         t0 = time.perf_counter()
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None)
-        client = Client(cluster)
+        client, close = _client_for(None, workers)
         out["cluster_start"] = time.perf_counter() - t0
 
         def run(p):
@@ -300,9 +287,8 @@ def child_mesh(n: int, seed: int, tiles: list, mode: str, workers: int) -> dict:
         if client is not None:
             out["worker_peak_mb"] = sorted(client.run(_peak_mb).values())
     finally:
-        if client is not None:
-            client.close()
-            cluster.close()
+        if close is not None:
+            close()
     keys = np.sort(_tri_keys(mesh.triangles))
     h = hashlib.sha1()
     for a in (keys, mesh.normals, mesh.outliers):
