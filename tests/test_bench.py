@@ -282,7 +282,7 @@ def test_bench_mesh_smoke(tmp_path, capsys, fake_peers):
 @pytest.mark.parametrize(("loader", "timeout", "status", "message"), [
     ("load_fail", 300, "failed", "failed: RuntimeError: this method always fails"),
     ("load_crash", 300, "crashed", "crashed (SIGSEGV"),
-    ("load_hang", 15, "timeout", "timed out after 15 s"),
+    ("load_hang", 10, "timeout", "timed out after 10 s"),
 ])
 def test_bench_mesh_reports_broken_methods(tmp_path, fake_peers, loader, timeout, status,
                                            message):
@@ -400,7 +400,7 @@ def test_bench_reduce_smoke(tmp_path, capsys, fake_peers):
 
 @pytest.mark.parametrize(("loader", "timeout", "status", "message"), [
     ("load_fail_second", 60, "failed", "failed: RuntimeError: too many points for this method"),
-    ("load_hang_second", 15, "timeout", "timed out after 15 s (while timed)"),
+    ("load_hang_second", 10, "timeout", "timed out after 10 s (while timed)"),
 ])
 def test_bench_reduce_reports_each_fraction(tmp_path, monkeypatch, loader, timeout, status,
                                             message):
