@@ -7,11 +7,18 @@ import pytest
 import pyvista as pv
 
 import fancloud_vtk.algorithms as algorithms
-from fancloud_vtk import build_fans, fan_cloud_of_mesh
+from fancloud_vtk import build_fans, fan_cloud_of_mesh, fan_cloud_to_mesh, tiled_fans, tiled_mesh
 from fancloud_vtk.accessor import FanCloudAccessor
 from fancloud_vtk.algorithms import FanCloudFilter
 from fancloud_vtk.cli import make_parser
-from fancloud_vtk.params import FAN_PARAMS, INPUT_PARAMS, Param, check_params, markdown_table
+from fancloud_vtk.params import (
+    FAN_PARAMS,
+    INPUT_PARAMS,
+    MESH_PARAMS,
+    Param,
+    check_params,
+    markdown_table,
+)
 
 IDS = [p.name for p in FAN_PARAMS]
 
@@ -69,6 +76,27 @@ def test_no_front_has_extra_parameters():
     assert set(FanCloudFilter().parameters) == names | input_names
     core_only = {"points", "normals", "point_data", "workers", "progress"}
     assert set(inspect.signature(build_fans).parameters) - core_only == names
+
+
+#: the core functions that repeat the table's keywords in their signatures (spelled out,
+#: for help() and the editors): each with the table's rows it takes
+CORE_KEYWORDS = [
+    (fan_cloud_to_mesh, MESH_PARAMS),
+    (tiled_fans, FAN_PARAMS),
+    (tiled_mesh, tuple(p for p in FAN_PARAMS if p.name != "orient") + MESH_PARAMS),
+]
+
+
+@pytest.mark.parametrize("fn, table", CORE_KEYWORDS, ids=[f.__name__ for f, _ in CORE_KEYWORDS])
+def test_core_functions_repeat_the_table_keywords(fn, table):
+    """The keywords that fan_cloud_to_mesh, tiled_fans and tiled_mesh share with the verbs
+    have the table's defaults, of the table's types, keyword-only (but k)."""
+    sig = inspect.signature(fn).parameters
+    for param in table:
+        assert param.name in sig, (fn.__name__, param.name)
+        p = sig[param.name]
+        assert p.default == param.default and type(p.default) is type(param.default), param.name
+        assert p.kind is inspect.Parameter.KEYWORD_ONLY or param.name == "k", param.name
 
 
 #: every filter, accessor verb and command that reads a dataset
