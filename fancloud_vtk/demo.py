@@ -18,6 +18,7 @@ from above, and the front shaded from that viewpoint.
 from __future__ import annotations
 
 import os
+import sys
 import time
 import warnings
 
@@ -247,6 +248,9 @@ def run_demo(out_dir: str = "fancloud_demo", quiet: bool = False) -> dict:
 
     os.makedirs(out_dir, exist_ok=True)
     src = read_point_cloud(bunny_path())
+    if not quiet:  # a first run is silent for minutes otherwise
+        print("fancloud demo: loading the numba kernels (a first run compiles them, which "
+              "takes minutes; they are cached for later runs)", file=sys.stderr, flush=True)
     t0 = time.perf_counter()
     # compile the numba kernels (cached after the first run); a patch of 500 points is no
     # surface to judge
