@@ -116,3 +116,42 @@ def test_bench_vdfc_one_part(tmp_path, capsys):
     text = (out / "vdfc.md").read_text()
     assert "build: ratio forest (blocks) / build_fans" in text and "frames:" not in text
     assert not (out / "vdfc_frames.png").exists() and not (out / "vdfc_peers.png").exists()
+
+
+def test_terrains_of_the_bench():
+    # the three height fields: their grid, relief and spacing, and e_max scaled to them
+    from fancloud_vtk.bench.vdfc import DEFAULT_E_MAX, TERRAINS, default_e_max, terrain
+
+    seen = {}
+    for data in TERRAINS:
+        heights, spacing, origin, label = terrain(50, data, seed=3)
+        assert heights.shape == (50, 50) and np.isfinite(heights).all(), data
+        assert np.ptp(heights) > 100 and min(spacing) > 0 and origin == (0.0, 0.0), data
+        assert "50 x 50 (2,500 points" in label, label
+        seen[data] = default_e_max(heights, spacing, data)
+    assert seen["jacksboro"] == DEFAULT_E_MAX
+    assert seen["topobathy"] > 5 * DEFAULT_E_MAX  # a ground about 8 times as wide
+    # the fractal ground is 30 m a step: 1,470 m wide here, 43.7 km for Jacksboro's diagonal
+    assert math.isclose(seen["fractal"], DEFAULT_E_MAX * 1470 * math.sqrt(2) / 43_692, rel_tol=0.01)
+    fractal = terrain(50, "fractal", seed=3)[0]
+    assert np.array_equal(fractal, terrain(50, "fractal", seed=3)[0])  # a seed, one surface
+    assert not np.array_equal(fractal, terrain(50, "fractal", seed=4)[0])
+    assert math.isclose(np.ptp(fractal), 1000.0)
+    try:
+        terrain(50, "moon")
+    except ValueError as exc:
+        assert "moon" in str(exc) and "jacksboro" in str(exc)
+    else:
+        raise AssertionError("an unknown terrain was accepted")
+
+
+def test_bench_vdfc_on_another_terrain(tmp_path, capsys):
+    out = tmp_path / "bench"
+    assert cli_main(["bench", "vdfc", "--data", "fractal", "--part", "frames", "--n", "60",
+                     "--frames", "4", "--render-frames", "0", "--out", str(out), "-q"]) == 0
+    raw = json.loads((out / "vdfc.json").read_text())
+    assert raw["args"]["data"] == "fractal" and raw["data"].startswith("fractal terrain 60 x 60")
+    assert math.isclose(raw["args"]["e_max"], raw["frames"]["e_max"])
+    assert "scaled by the ground's diagonal" in (out / "vdfc.md").read_text()
+    rows = {r["figure"]: r for r in raw["rows"]}
+    assert rows["frames: triangles per active point, mean"]["data"] == raw["data"]

@@ -1,13 +1,18 @@
 """``fancloud bench vdfc``: view-dependent fan clouds (paper section 8) on a terrain.
 
-``fancloud bench vdfc [--part build frames peers] [--n 1000] [--repeat 2] [--frames 300]
-[--e-max 20] [--out DIR] [--quick]``
+``fancloud bench vdfc [--part build frames peers] [--data jacksboro] [--n 1000] [--repeat 2]
+[--frames 300] [--e-max 20] [--out DIR] [--quick]``
 
-The data: the Jacksboro fault DEM shipped with matplotlib, resampled to an
-``--n`` x ``--n`` grid (:func:`fancloud_vtk.data.jacksboro_terrain`; 1000:
-a million points, about 30 m apart, heights in metres), as a fan cloud
-(:func:`~fancloud_vtk.terrain_fan_cloud`). Every call is made once on a
-40 x 40 terrain first (numba compiled), then timed in this process.
+The data (``--data``, :func:`terrain`): the Jacksboro fault DEM shipped with
+matplotlib, resampled to an ``--n`` x ``--n`` grid
+(:func:`fancloud_vtk.data.jacksboro_terrain`; 1000: a million points, about
+30 m apart, heights in metres); or matplotlib's other DEM (``topobathy``,
+resampled the same way) or a fractional Brownian surface (``fractal``,
+``--seed``), as a fan cloud (:func:`~fancloud_vtk.terrain_fan_cloud`).
+``--e-max`` is 20 m on Jacksboro by default, and the same fraction of the
+ground's diagonal on the others (:func:`default_e_max`). Every call is made
+once on a 40 x 40 terrain first (numba compiled), then timed in this
+process.
 
 build
     Best of ``--repeat``: ``build_fans(fc.points)`` against
@@ -96,14 +101,89 @@ PEER_COLUMNS = ("surface", "points", "triangles", "triangles in view (mean)", "t
 SURFACES = ("ours (front)", "vtkGreedyTerrainDecimation", "fast-simplification")
 
 
-def terrain(side: int):
-    """(heights, (dx, dy), origin, label) of the Jacksboro DEM on a side x side grid."""
+#: The height fields ``--data`` names (:func:`terrain`).
+TERRAINS = ("jacksboro", "topobathy", "fractal")
+#: The fractal terrain: grid spacing (m), relief (m) and Hurst exponent of its spectrum.
+FRACTAL_SPACING, FRACTAL_RELIEF, FRACTAL_HURST = 30.0, 1000.0, 0.7
+
+
+def terrain(side: int, data: str = "jacksboro", seed: int = 0):
+    """(heights, (dx, dy), origin, label) of the height field ``data`` on a side x side grid.
+
+    ``jacksboro``: the Jacksboro fault DEM shipped with matplotlib (30 x 32 km, heights
+    236 to 1,076 m), resampled by cubic splines. ``topobathy``: matplotlib's other DEM,
+    topography and bathymetry of the coast around Vancouver Island (4 by 2 degrees,
+    about 290 x 220 km, heights -1,437 to 2,205 m, a 120 x 91 grid), resampled the same
+    way: smooth at the grid's scale, one large relief. ``fractal``: a fractional Brownian
+    surface (spectral synthesis: random phases, amplitudes falling as the frequency to
+    the power ``-(FRACTAL_HURST + 1)``, ``seed``), on a grid ``FRACTAL_SPACING`` m apart
+    with ``FRACTAL_RELIEF`` m from lowest to highest: rough at every scale.
+    """
+    if data == "jacksboro":
+        from fancloud_vtk.data import jacksboro_terrain
+
+        heights, spacing, origin = jacksboro_terrain((side, side))
+        label = (f"Jacksboro DEM {side} x {side} ({side * side:,} points, "
+                 f"{spacing[0]:.1f} x {spacing[1]:.1f} m)")
+    elif data == "topobathy":
+        heights, spacing, origin = _topobathy(side)
+        label = (f"topobathy DEM {side} x {side} ({side * side:,} points, "
+                 f"{spacing[0]:.0f} x {spacing[1]:.0f} m)")
+    elif data == "fractal":
+        heights = _fractal(side, seed)
+        spacing, origin = (FRACTAL_SPACING, FRACTAL_SPACING), (0.0, 0.0)
+        label = (f"fractal terrain {side} x {side} ({side * side:,} points, "
+                 f"{FRACTAL_SPACING:.0f} m apart, H {FRACTAL_HURST:g}, seed {seed})")
+    else:
+        raise ValueError(f"unknown terrain {data!r}; one of {', '.join(TERRAINS)}")
+    return heights, spacing, origin, label
+
+
+def _topobathy(side: int):
+    """matplotlib's ``topobathy.npz`` on a side x side grid, in metres: (heights, spacing,
+    origin)."""
+    from matplotlib.cbook import get_sample_data
+    from scipy.ndimage import zoom
+
+    from fancloud_vtk.data import _M_PER_DEG
+
+    dem = get_sample_data("topobathy.npz")
+    z = np.asarray(dem["topo"], dtype=np.float64)
+    lon, lat = np.asarray(dem["longitude"], float), np.asarray(dem["latitude"], float)
+    mid = np.radians(0.5 * (lat[0] + lat[-1]))
+    width = abs(lon[-1] - lon[0]) * _M_PER_DEG * float(np.cos(mid))
+    height = abs(lat[-1] - lat[0]) * _M_PER_DEG
+    z = zoom(z, (side / z.shape[0], side / z.shape[1]), order=3)
+    return z, (width / (side - 1), height / (side - 1)), (0.0, 0.0)
+
+
+def _fractal(side: int, seed: int) -> np.ndarray:
+    """A side x side fractional Brownian surface with relief ``FRACTAL_RELIEF``."""
+    rng = np.random.default_rng(seed)
+    fy = np.fft.fftfreq(side)[:, None]
+    fx = np.fft.rfftfreq(side)[None, :]
+    f = np.hypot(fx, fy)
+    f[0, 0] = 1.0
+    amp = f ** -(FRACTAL_HURST + 1.0)
+    amp[0, 0] = 0.0
+    spec = amp * np.exp(2j * np.pi * rng.random(amp.shape))
+    z = np.fft.irfft2(spec, s=(side, side))
+    z -= z.min()
+    return z * (FRACTAL_RELIEF / z.max())
+
+
+def default_e_max(heights, spacing, data: str) -> float:
+    """``--e-max`` by default: 20 m on Jacksboro (``DEFAULT_E_MAX``); on another height
+    field the same fraction of the ground's diagonal (20 m in Jacksboro's 43.7 km)."""
+    if data == "jacksboro":
+        return DEFAULT_E_MAX
     from fancloud_vtk.data import jacksboro_terrain
 
-    heights, spacing, origin = jacksboro_terrain((side, side))
-    label = (f"Jacksboro DEM {side} x {side} ({side * side:,} points, "
-             f"{spacing[0]:.1f} x {spacing[1]:.1f} m)")
-    return heights, spacing, origin, label
+    jh, (jx, jy), _ = jacksboro_terrain()
+    ref = np.hypot(jx * (jh.shape[1] - 1), jy * (jh.shape[0] - 1))
+    ny, nx = heights.shape
+    diag = np.hypot(spacing[0] * (nx - 1), spacing[1] * (ny - 1))
+    return float(f"{DEFAULT_E_MAX * diag / ref:.3g}")
 
 
 def grid_triangles(ny: int, nx: int) -> np.ndarray:
@@ -846,17 +926,20 @@ def run_vdfc(args, argv: list[str]) -> dict:
     n_frames = args.frames if args.frames is not None else (
         QUICK_FRAMES if args.quick else DEFAULT_FRAMES)
     if side < 16 or n_frames < 2 or args.cameras < 1 or args.samples < 1 \
-            or args.render_frames < 0 or not args.e_max > 0:
+            or args.render_frames < 0 or not (args.e_max is None or args.e_max > 0):
         raise ValueError("--n must be at least 16, --frames at least 2, --cameras and "
                          "--samples at least 1, --render-frames not negative and --e-max > 0")
     parts = list(dict.fromkeys(args.part))
+    _warm(quiet)
+    heights, spacing, origin, data = terrain(side, args.data, args.seed)
+    e_max = args.e_max if args.e_max is not None else default_e_max(heights, spacing,
+                                                                     args.data)
     res = {**header(["vdfc", *argv]),
-           "args": {"part": parts, "n": side, "repeat": args.repeat, "frames": n_frames,
-                    "e_max": args.e_max, "cameras": args.cameras, "samples": args.samples,
+           "args": {"part": parts, "data": args.data, "n": side, "repeat": args.repeat,
+                    "frames": n_frames, "e_max": e_max, "cameras": args.cameras,
+                    "samples": args.samples,
                     "render_frames": args.render_frames, "seed": args.seed},
            "build": None, "frames": None, "render": None, "peers": None, "merges": None}
-    _warm(quiet)
-    heights, spacing, origin, data = terrain(side)
     fc = terrain_fan_cloud(heights, spacing=spacing, origin=origin)
     res["data"] = data
     rows, written, notes = [], [], []
@@ -870,13 +953,13 @@ def run_vdfc(args, argv: list[str]) -> dict:
         vd = ViewDependentFanCloud.build(fc)
         cams = terrain_path(vd.bounds(), n_frames)
         d_max = vd.default_d_max(cams[0])
-        _log(quiet, f"frames: {n_frames} cameras, e_max {args.e_max:g} m")
-        fr = run_frames(vd, cams, args.e_max, d_max, quiet)
+        _log(quiet, f"frames: {n_frames} cameras, e_max {e_max:g} m")
+        fr = run_frames(vd, cams, e_max, d_max, quiet)
         s = frame_summary(fr, fc.n_points)
         res["frames"] = {**fr, "summary": s}
         if "frames" in parts:
             _log(quiet, "frames again, superfluous triangles removed")
-            lean = frame_summary(run_frames(vd, cams, args.e_max, d_max, quiet, True),
+            lean = frame_summary(run_frames(vd, cams, e_max, d_max, quiet, True),
                                  fc.n_points)
             res["frames"]["superfluous"] = lean
             _log(quiet, "frames again, every front kernel on one thread")
@@ -886,7 +969,7 @@ def run_vdfc(args, argv: list[str]) -> dict:
             vdfc_module.PARALLEL_FRONT = 2**62  # never split: the serial path, same result
             try:
                 res["frames"]["serial"] = frame_summary(
-                    run_frames(vd, cams, args.e_max, d_max, quiet), fc.n_points)
+                    run_frames(vd, cams, e_max, d_max, quiet), fc.n_points)
             finally:
                 vdfc_module.PARALLEL_FRONT = saved
     render = None
@@ -894,7 +977,7 @@ def run_vdfc(args, argv: list[str]) -> dict:
         if args.render_frames:
             _log(quiet, f"render: flythrough of {args.render_frames} frames")
             try:
-                render = run_render(vd, cams, args.e_max, d_max, args.render_frames,
+                render = run_render(vd, cams, e_max, d_max, args.render_frames,
                                     os.path.join(args.out, "frames"))
             except Exception as exc:  # an offscreen render can fail on a machine without GL
                 render = {"error": f"{type(exc).__name__}: {exc}"}
@@ -908,11 +991,11 @@ def run_vdfc(args, argv: list[str]) -> dict:
             vd = ViewDependentFanCloud.build(fc)
             cams = terrain_path(vd.bounds(), n_frames)
             d_max = vd.default_d_max(cams[0])
-        merges = run_merges(fc, vd, cams, args.e_max, d_max)
+        merges = run_merges(fc, vd, cams, e_max, d_max)
         merges["sse"] = merges_sse(fc, merges.pop("forests"), heights, spacing, origin, cams,
-                                   args.e_max, d_max, args.cameras, args.samples, args.seed)
+                                   e_max, d_max, args.cameras, args.samples, args.seed)
         res["merges"] = merges
-        rows += merge_rows(merges, data, args.e_max)
+        rows += merge_rows(merges, data, e_max)
     pr = None
     if "peers" in parts:
         _log(quiet, f"peers: {args.cameras} cameras")
@@ -934,8 +1017,11 @@ def run_vdfc(args, argv: list[str]) -> dict:
     notes.insert(0, "load average at the end " + (", ".join(f"{x:.2f}" for x in load) if load
                                                   else "unknown"))
     if fr is not None:
-        notes.insert(1, f"e_max {args.e_max:g} m: chosen so that the 1000 x 1000 terrain's "
-                        "front holds a few per cent of the points (about 3% on average)")
+        notes.insert(1, f"e_max {e_max:g} m" + (
+            ": chosen so that the 1000 x 1000 terrain's front holds a few per cent of the "
+            "points (about 3% on average)" if args.data == "jacksboro" and args.e_max is None
+            else " (given)" if args.e_max is not None else
+            ": Jacksboro's 20 m scaled by the ground's diagonal (the default)"))
     res["rows"] = rows
     text = markdown("fancloud bench vdfc: view-dependent fan clouds (paper section 8)", res,
                     rows, notes)
@@ -983,8 +1069,9 @@ def add_parser(sub) -> argparse.ArgumentParser:
     """Register ``vdfc`` on the subparsers of ``fancloud bench``."""
     p = sub.add_parser(
         "vdfc", help="view-dependent fan clouds: forest build, fly-through, screen-space error",
-        description="On the Jacksboro DEM: the forest's build time against build_fans; a "
-                    "fly-through's front update time, active points and triangles per point; "
+        description="On a height field (the Jacksboro DEM by default): the forest's build "
+                    "time against build_fans; a fly-through's front update time, active "
+                    "points and triangles per point; "
                     "the screen-space error of the fronts against vtkGreedyTerrainDecimation "
                     "and fast-simplification at the same triangle count. Writes vdfc.md, "
                     "vdfc.json, vdfc_frames.csv, vdfc_frames.png, frames/*.png and "
@@ -1003,9 +1090,13 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=None,
                    help=f"cameras of the fly-through (default: {DEFAULT_FRAMES}; --quick: "
                         f"{QUICK_FRAMES})")
-    p.add_argument("--e-max", type=float, default=DEFAULT_E_MAX,
-                   help="the front's e_max in metres at d_max, the range of sight "
-                        "(default: %(default)s: about 3%% of the points active at n = 1000)")
+    p.add_argument("--data", choices=TERRAINS, default="jacksboro",
+                   help="the height field (default: %(default)s; topobathy: matplotlib's "
+                        "other DEM; fractal: a fractional Brownian surface of --seed)")
+    p.add_argument("--e-max", type=float, default=None,
+                   help=f"the front's e_max in metres at d_max, the range of sight (default: "
+                        f"{DEFAULT_E_MAX:g} on Jacksboro, about 3%% of the points active at n = "
+                        f"1000; on other data the same fraction of the ground's diagonal)")
     p.add_argument("--render-frames", type=int, default=10,
                    help="frames rendered to PNG by flythrough, 640 x 480, 0: none "
                         "(default: %(default)s)")
