@@ -1309,9 +1309,24 @@ def _has_pair(mring, moff, v, s, t, closed):
     return False
 
 
+@njit(cache=True)
+def _beyond(pos, planes, a, b, c):
+    """Do the nodes a, b and c all lie outside one of the frustum's planes?"""
+    for k in range(planes.shape[0]):
+        out = True
+        for x in (a, b, c):
+            if planes[k, 0] * pos[x, 0] + planes[k, 1] * pos[x, 1] + planes[k, 2] * pos[x, 2] \
+                    + planes[k, 3] >= 0.0:
+                out = False
+                break
+        if out:
+            return True
+    return False
+
+
 @njit(cache=True, parallel=True)
 def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring, rep,
-                    n_chunks, with_held):
+                    n_chunks, with_held, planes):
     """Distinct triangles of the active fans; returns (triangles, held, extra points).
 
     ``aidx[x]`` is x's index in ``active`` (or -1). A fan neighbour that is
@@ -1322,11 +1337,19 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
     child passes only refined nodes, which a front node below keeps refined),
     so after a small camera move most walks are skipped. A stand-in that is a
     front node outside the frustum joins the points as an *extra* (index
-    ``len(active) + j`` in the order of first use, its ``aidx`` set here; it
-    draws no fan of its own), so the front has no ragged edge at the border
-    of the view. A triangle is written once, by the smallest of its points
-    whose fan holds it, in the order of the fans; ``held``: how many of
-    its points' fans hold it (1 to 3; all 1 unless ``with_held``).
+    ``len(active) + j`` in the order of first use, its ``aidx`` set here), so
+    the front has no ragged edge at the border of the view. An extra's fan
+    (its stand-ins found as above; one that is not yet a point is numbered
+    after the extras, in the order of first use, draws no fan, and is left
+    out again if no triangle drawn uses it)
+    draws its triangles but those wholly beyond one of the frustum's
+    ``planes`` (as :meth:`Camera.frustum` gives them): where the fans in view
+    leave a gap towards the points beyond the view's edge, it covers the gap
+    as fans in view cover each other's (without it a few points in view,
+    near its edge, were under no triangle: docs/vdfc.md). A triangle is
+    written once, by the smallest of its points whose fan holds it, in the
+    order of the fans; ``held``: how many of its points' fans hold it (1 to
+    3; all 1 unless ``with_held``).
 
     The stand-ins and the triangles run in ``n_chunks`` ranges of fans in
     parallel (1: serially; the result is the same): each fan writes only its
@@ -1387,24 +1410,78 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
                     aidx[y] = v
                     ne += 1
                 mring[q] = v
+    # the extras' fans too (their stand-ins as above; a new one, a front node beyond the
+    # view that no fan in view reaches, is numbered after them and draws no fan): they
+    # draw their triangles but those wholly beyond the view (below), so that the view's
+    # edge is covered where the fans in view leave a gap towards the points beyond it
+    nx = ne  # the extras with a fan
+    moff2 = np.empty(na + nx + 1, np.int64)
+    for i in range(na + 1):
+        moff2[i] = moff[i]
+    for e in range(nx):
+        y = extra[e]
+        moff2[na + 1 + e] = moff2[na + e] + ring_off[y + 1] - ring_off[y]
+    n2 = moff2[na + nx]
+    if nx:
+        grown = np.empty(n2, np.int64)
+        for q in range(n):
+            grown[q] = mring[q]
+        mring = grown
+    for ch in prange(n_chunks):
+        for e in range(nx * ch // n_chunks, nx * (ch + 1) // n_chunks):
+            y = extra[e]
+            s0 = ring_off[y]
+            b = moff2[na + e]
+            for j in range(moff2[na + e + 1] - b):
+                z = rep[s0 + j]
+                if state[z] != FRONT:
+                    z = _representative(pos, child, parent, state, y, ring[s0 + j])
+                    if z >= 0:
+                        rep[s0 + j] = z
+                if z < 0:
+                    mring[b + j] = -1
+                else:
+                    v = aidx[z]
+                    mring[b + j] = v if v >= 0 else -2 - z
+    for q in range(moff2[na], n2):  # numbered in the order of first use
+        v = mring[q]
+        if v < -1:
+            y = -2 - v
+            v = aidx[y]
+            if v < 0:
+                if ne >= extra.shape[0]:
+                    bigger = np.empty(2 * extra.shape[0], np.int64)
+                    for e in range(ne):
+                        bigger[e] = extra[e]
+                    extra = bigger
+                extra[ne] = y
+                v = na + ne
+                aidx[y] = v
+                ne += 1
+            mring[q] = v
     ex = np.empty(ne, np.int64)
     for e in range(ne):
         ex[e] = extra[e]
     extra = ex
-    moff2 = np.empty(na + ne + 1, np.int64)
-    for i in range(na + 1):
-        moff2[i] = moff[i]
-    for e in range(ne):
-        moff2[na + 1 + e] = n
+    moff3 = np.empty(na + ne + 1, np.int64)  # the last extras' fans are empty
+    for i in range(na + nx + 1):
+        moff3[i] = moff2[i]
+    for e in range(nx, ne):
+        moff3[na + 1 + e] = n2
+    moff2 = moff3
     closed2 = np.zeros(na + ne, np.bool_)
     for i in range(na):
         closed2[i] = closed[i]
+    for e in range(nx):
+        closed2[na + e] = not is_open[extra[e]]
+    n = n2
+    nf = na + nx  # the fans drawn
     tri = np.empty((n, 3), np.int64)
     hold = np.empty(n, np.int64)
-    cnt = np.zeros(na, np.int64)
+    cnt = np.zeros(nf, np.int64)
     for ch in prange(n_chunks):
-        lo = na * ch // n_chunks
-        hi = na * (ch + 1) // n_chunks
+        lo = nf * ch // n_chunks
+        hi = nf * (ch + 1) // n_chunks
         for i in range(lo, hi):
             k = moff2[i + 1] - moff2[i]
             last = k if closed2[i] else k - 1
@@ -1415,6 +1492,9 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
                 t = mring[base + j + 1] if j + 1 < k else mring[base]
                 if s < 0 or t < 0 or s == t or s == i or t == i:
                     continue
+                if i >= na and s >= na and t >= na and _beyond(pos, planes, extra[i - na],
+                                                               extra[s - na], extra[t - na]):
+                    continue  # an extra's triangle wholly beyond the view
                 if (s < i and _has_pair(mring, moff2, s, i, t, closed2)) or \
                         (t < i and _has_pair(mring, moff2, t, i, s, closed2)):
                     continue
@@ -1439,20 +1519,41 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
                 hold[c] = h
                 c += 1
             cnt[i] = c - base
-    at = np.empty(na + 1, np.int64)  # where each fan's rows go
+    at = np.empty(nf + 1, np.int64)  # where each fan's rows go
     at[0] = 0
-    for i in range(na):
+    for i in range(nf):
         at[i + 1] = at[i] + cnt[i]
-    out = np.empty((at[na], 3), np.int64)
-    held = np.empty(at[na], np.int64)
+    out = np.empty((at[nf], 3), np.int64)
+    held = np.empty(at[nf], np.int64)
     for ch in prange(n_chunks):
-        for i in range(na * ch // n_chunks, na * (ch + 1) // n_chunks):
+        for i in range(nf * ch // n_chunks, nf * (ch + 1) // n_chunks):
             b = moff2[i]
             for r in range(cnt[i]):
                 out[at[i] + r, 0] = tri[b + r, 0]
                 out[at[i] + r, 1] = tri[b + r, 1]
                 out[at[i] + r, 2] = tri[b + r, 2]
                 held[at[i] + r] = hold[b + r]
+    if ne > nx:  # the last extras that no triangle drawn uses are left out
+        new = np.full(ne - nx, -1, np.int64)
+        for r in range(at[na], at[nf]):  # only the extras' fans reach them
+            for k in range(3):
+                v = out[r, k] - na - nx
+                if v >= 0:
+                    new[v] = 0
+        kept = nx
+        for e in range(nx, ne):
+            if new[e - nx] == 0:
+                new[e - nx] = na + kept
+                extra[kept] = extra[e]
+                kept += 1
+            else:
+                aidx[extra[e]] = -1
+        for r in range(at[na], at[nf]):
+            for k in range(3):
+                v = out[r, k] - na - nx
+                if v >= 0:
+                    out[r, k] = new[v]
+        extra = extra[:kept].copy()
     return out, held, extra
 
 

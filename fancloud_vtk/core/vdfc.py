@@ -996,7 +996,7 @@ class ViewDependentFanCloud:
         tri, held, extra = VK.front_triangles(self.positions, self.children, self.parent,
                                               self._state, active, self._aidx, self.open,
                                               self.ring_offsets, self.ring, self._rep, chunks,
-                                              superfluous)
+                                              superfluous, planes)
         t2 = time.perf_counter()
         n_view = len(active)
         ids, points, normals, level, error = VK.front_points(
