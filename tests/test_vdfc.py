@@ -890,3 +890,19 @@ def test_folded_front_triangles_are_those_turned_against_their_fans_point(forest
     tri[0] = tri[0, [0, 2, 1]]
     mask = Front(front.points, tri, front.normals).folded_triangles()
     assert mask[0] and not mask[1:].any()
+
+
+def test_a_boundary_neighbours_stand_in_stays_on_the_boundary():
+    # node 2 merged the open (boundary) point 0 and the inner point 1, and is refined; the
+    # front node 3 is nearer to 1. For an inner ring entry the stand-in is the nearer child;
+    # for an end of 3's open fan (its neighbour along the boundary) the open child: else the
+    # fan leaves the strip along the boundary between them uncovered (the topobathy DEM)
+    pos = np.array([[0.0, 2.0, 0.0], [-0.5, 0.3, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 0.0]])
+    child = np.array([[-1, -1], [-1, -1], [0, 1], [-1, -1]])
+    parent = np.array([2, 2, -1, -1])
+    state = np.array([VK.FRONT, VK.FRONT, VK.REFINED, VK.FRONT], np.int8)
+    is_open = np.array([True, False, True, True])
+    assert VK._representative(pos, child, parent, state, 3, 2, is_open, False) == 1
+    assert VK._representative(pos, child, parent, state, 3, 2, is_open, True) == 0
+    is_open[1] = True  # both on the boundary: the nearer again
+    assert VK._representative(pos, child, parent, state, 3, 2, is_open, True) == 1

@@ -1267,11 +1267,16 @@ def update_front(pos, radius, bound, child, parent, state, front, planes, eye, s
 
 
 @njit(cache=True)
-def _representative(pos, child, parent, state, a, y):
+def _representative(pos, child, parent, state, a, y, is_open, border):
     """The active stand-in for fan neighbour y of the front node a.
 
     The walks are short (one or two levels on average: the front is graded),
-    so nothing is remembered between calls.
+    so nothing is remembered between calls. With ``border`` (y is an end of
+    a's open fan: a neighbour along the boundary), the walk down takes the
+    open child where one child is open and the other not: the boundary
+    neighbour's stand-in stays on the boundary (the nearer child may be an
+    inner point, and the fan would leave the boundary strip between them
+    uncovered: seen on the topobathy DEM's outer border).
     """
     while state[y] == 0:  # below the front: its front ancestor
         y = parent[y]
@@ -1280,6 +1285,9 @@ def _representative(pos, child, parent, state, a, y):
     while state[y] == REFINED:  # above the front: the child nearer to a
         c0 = child[y, 0]
         c1 = child[y, 1]
+        if border and is_open[c0] != is_open[c1]:
+            y = c0 if is_open[c0] else c1
+            continue
         d0 = 0.0
         d1 = 0.0
         for d in range(3):
@@ -1375,10 +1383,12 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
             x = active[i]
             closed[i] = not is_open[x]
             s0 = ring_off[x]
-            for j in range(moff[i + 1] - moff[i]):
+            k = moff[i + 1] - moff[i]
+            for j in range(k):
                 y = rep[s0 + j]
                 if state[y] != FRONT:
-                    y = _representative(pos, child, parent, state, x, ring[s0 + j])
+                    y = _representative(pos, child, parent, state, x, ring[s0 + j], is_open,
+                                        is_open[x] and (j == 0 or j == k - 1))
                     if y >= 0:
                         rep[s0 + j] = y
                 if y < 0:
@@ -1432,10 +1442,12 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
             y = extra[e]
             s0 = ring_off[y]
             b = moff2[na + e]
-            for j in range(moff2[na + e + 1] - b):
+            k = moff2[na + e + 1] - b
+            for j in range(k):
                 z = rep[s0 + j]
                 if state[z] != FRONT:
-                    z = _representative(pos, child, parent, state, y, ring[s0 + j])
+                    z = _representative(pos, child, parent, state, y, ring[s0 + j], is_open,
+                                        is_open[y] and (j == 0 or j == k - 1))
                     if z >= 0:
                         rep[s0 + j] = z
                 if z < 0:
