@@ -155,3 +155,38 @@ def test_bench_vdfc_on_another_terrain(tmp_path, capsys):
     assert "scaled by the ground's diagonal" in (out / "vdfc.md").read_text()
     rows = {r["figure"]: r for r in raw["rows"]}
     assert rows["frames: triangles per active point, mean"]["data"] == raw["data"]
+
+
+def test_bench_vdfc_on_a_scanned_object(tmp_path, capsys):
+    # the bunny as a point set: the build and frames parts, cameras circling it; peers and
+    # merges measure on a height field's grid and are left out, and said so
+    out = tmp_path / "bench"
+    assert cli_main(["bench", "vdfc", "--data", "bunny", "--frames", "4", "--repeat", "1",
+                     "--render-frames", "0", "--out", str(out), "-q"]) == 0
+    raw = json.loads((out / "vdfc.json").read_text())
+    assert raw["args"]["part"] == ["build", "frames"] and raw["data"].startswith("Stanford bunny")
+    rows = {r["figure"]: r for r in raw["rows"]}
+    ratio = rows["build: ratio forest / build_fans, the points as a point set"]
+    assert ratio["verdict"] in ("yes", "NO") and float(ratio["measured"]) > 0
+    tpp = float(rows["frames: triangles per active point, mean"]["measured"])
+    assert 1 < tpp < 3
+    assert "orbit_path(bounds, 4)" in rows["frames: front update, mean"]["parameters"]
+    text = (out / "vdfc.md").read_text()
+    assert "not run on a point set: peers, merges" in text
+    assert (out / "vdfc_frames.png").read_bytes()[:8] == PNG
+    capsys.readouterr()
+    assert cli_main(["bench", "vdfc", "--data", "bunny", "--part", "peers", "--out",
+                     str(out), "-q"]) != 0
+    err = capsys.readouterr().err
+    assert "point set" in err and "height field" in err
+
+
+def test_orbit_path_circles_the_object():
+    from fancloud_vtk.bench.vdfc import orbit_path
+
+    cams = orbit_path((0, 2, 0, 2, 0, 2), 8)
+    centre = np.ones(3)
+    dist = [np.linalg.norm(np.subtract(c[0], centre)) for c in cams]
+    assert np.allclose(dist, 1.2 * np.sqrt(12)) and all(c[1] == (1.0, 1.0, 1.0) for c in cams)
+    heights = [c[0][2] for c in cams]
+    assert heights[0] < 1.0 < heights[-1] and np.all(np.diff(heights) > 0)  # it rises

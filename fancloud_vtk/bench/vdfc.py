@@ -10,7 +10,12 @@ matplotlib, resampled to an ``--n`` x ``--n`` grid
 resampled the same way) or a fractional Brownian surface (``fractal``,
 ``--seed``), as a fan cloud (:func:`~fancloud_vtk.terrain_fan_cloud`).
 ``--e-max`` is 20 m on Jacksboro by default, and the same fraction of the
-ground's diagonal on the others (:func:`default_e_max`). Every call is made
+ground's diagonal on the others (:func:`default_e_max`). ``--data bunny``: a
+scanned object as a point set (the Stanford bunny's points, fans from
+``build_fans``), on which only the build part (the forest in point blocks
+against ``build_fans``) and the frames part (cameras circling it,
+:func:`orbit_path`) run: the screen-space error and the cover are measured
+on a height field's grid. Every call is made
 once on a 40 x 40 terrain first (numba compiled), then timed in this
 process.
 
@@ -103,6 +108,11 @@ SURFACES = ("ours (front)", "vtkGreedyTerrainDecimation", "fast-simplification")
 
 #: The height fields ``--data`` names (:func:`terrain`).
 TERRAINS = ("jacksboro", "topobathy", "fractal")
+#: The scanned objects ``--data`` names (:func:`scanned_object`): point sets, no heights.
+OBJECTS = ("bunny",)
+#: A point set's forest is built in one block per this many points (64 at 1M, as the
+#: terrain's blocks).
+POINTS_PER_BLOCK = 15_625
 #: The fractal terrain: grid spacing (m), relief (m) and Hurst exponent of its spectrum.
 FRACTAL_SPACING, FRACTAL_RELIEF, FRACTAL_HURST = 30.0, 1000.0, 0.7
 
@@ -177,13 +187,99 @@ def default_e_max(heights, spacing, data: str) -> float:
     field the same fraction of the ground's diagonal (20 m in Jacksboro's 43.7 km)."""
     if data == "jacksboro":
         return DEFAULT_E_MAX
-    from fancloud_vtk.data import jacksboro_terrain
-
-    jh, (jx, jy), _ = jacksboro_terrain()
-    ref = np.hypot(jx * (jh.shape[1] - 1), jy * (jh.shape[0] - 1))
+    ref = _jacksboro_diagonal()
     ny, nx = heights.shape
     diag = np.hypot(spacing[0] * (nx - 1), spacing[1] * (ny - 1))
     return float(f"{DEFAULT_E_MAX * diag / ref:.3g}")
+
+
+def _jacksboro_diagonal() -> float:
+    from fancloud_vtk.data import jacksboro_terrain
+
+    jh, (jx, jy), _ = jacksboro_terrain()
+    return float(np.hypot(jx * (jh.shape[1] - 1), jy * (jh.shape[0] - 1)))
+
+
+def scanned_object(data: str):
+    """(points, label) of a scanned object: ``bunny``, the Stanford bunny's points
+    (pymeshlab's ``bunny.obj``, a real range scan merged into one cloud)."""
+    if data != "bunny":
+        raise ValueError(f"unknown scanned object {data!r}; one of {', '.join(OBJECTS)}")
+    from fancloud_vtk.data import bunny_path
+    from fancloud_vtk.io import read_point_cloud
+
+    pts = read_point_cloud(bunny_path()).points
+    return pts, f"Stanford bunny (pymeshlab bunny.obj), {len(pts):,} points, a point set"
+
+
+def object_e_max(points) -> float:
+    """``--e-max`` by default on a scanned object: Jacksboro's 20 m in its 43.7 km ground
+    diagonal, as a fraction of the object's bounding-box diagonal."""
+    diag = float(np.linalg.norm(np.ptp(points, axis=0)))
+    return float(f"{DEFAULT_E_MAX * diag / _jacksboro_diagonal():.3g}")
+
+
+def orbit_path(bounds, n_frames: int, *, distance: float = 1.2, turns: float = 1.0,
+               view_angle: float = 30.0, aspect: float = 4 / 3) -> list[tuple]:
+    """Cameras circling an object: the eye ``distance`` times the bounding-box diagonal
+    from its centre, ``turns`` times round the z axis while it rises from 20 degrees
+    below the centre's height to 40 degrees above, always looking at the centre."""
+    b = np.asarray(bounds, dtype=np.float64)
+    centre = 0.5 * (b[::2] + b[1::2])
+    r = distance * float(np.linalg.norm(b[1::2] - b[::2]))
+    cams = []
+    for u in np.linspace(0.0, 1.0, n_frames, endpoint=False):
+        az = 2 * np.pi * turns * u
+        el = np.radians(-20.0 + 60.0 * u)
+        eye = centre + r * np.array([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az),
+                                     np.sin(el)])
+        cams.append((tuple(float(v) for v in eye), tuple(float(v) for v in centre),
+                     (0.0, 0.0, 1.0), float(view_angle), float(aspect)))
+    return cams
+
+
+def measure_point_build(points, repeat: int, quiet: bool) -> dict:
+    """Best times of build_fans(points) and of the forest of its fan cloud in point blocks
+    (:func:`~fancloud_vtk.point_blocks`, one per ``POINTS_PER_BLOCK`` points)."""
+    from fancloud_vtk import ViewDependentFanCloud, build_fans, point_blocks
+
+    n_blocks = max(1, len(points) // POINTS_PER_BLOCK)
+    fans, forest = [], []
+
+    def point_forest(pfc):
+        if n_blocks == 1:
+            return ViewDependentFanCloud.build(pfc)
+        return ViewDependentFanCloud.build(pfc, blocks=point_blocks(pfc, n_blocks))
+
+    for i in range(repeat):
+        _log(quiet, f"  build: run {i + 1} of {repeat}")
+        gc.collect()
+        t0 = time.perf_counter()
+        pfc = build_fans(points)
+        fans.append(time.perf_counter() - t0)
+        forest.append(timed(point_forest, pfc))
+        del pfc
+    return {"n": len(points), "blocks": n_blocks, "build_fans_times": fans,
+            "forest_times": forest, "build_fans": min(fans), "forest": min(forest),
+            "ratio": min(forest) / min(fans)}
+
+
+def point_build_rows(b: dict, data: str, repeat: int) -> list[dict]:
+    best = f"best of {repeat}, warm (same process)"
+    blocks = (f"blocks=point_blocks(fc, {b['blocks']})" if b["blocks"] > 1 else
+              "no blocks (fewer points than two blocks hold)")
+    return [
+        _row("build: build_fans", data, f"build_fans(points), k=6; {best}; runs "
+             + ", ".join(_num(t) for t in b["build_fans_times"]) + " s",
+             _num(b["build_fans"]), "s"),
+        _row("build: forest, the points as a point set", data,
+             f"ViewDependentFanCloud.build(fc, {blocks}); {best}; runs "
+             + ", ".join(_num(t) for t in b["forest_times"]) + " s",
+             _num(b["forest"]), "s"),
+        _row("build: ratio forest / build_fans, the points as a point set", data,
+             "best times above", f"{b['ratio']:.2f}", "x", f"<= {TARGET_BUILD_RATIO:g}",
+             _ok(b["ratio"] <= TARGET_BUILD_RATIO)),
+    ]
 
 
 def grid_triangles(ny: int, nx: int) -> np.ndarray:
@@ -491,8 +587,10 @@ def frame_summary(fr: dict, n: int) -> dict:
 def frame_rows(fr: dict, s: dict, data: str, render: dict | None,
                lean: dict | None = None, serial: dict | None = None) -> list[dict]:
     nf = len(fr["frames"])
-    path = (f"terrain_path(bounds, {nf}), e_max {fr['e_max']:g} m at d_max "
-            f"{fr['d_max']:,.0f} m (refine while e(r) > e_max d(r) / d_max)")
+    unit = fr.get("unit", "m")
+    d_max = f"{fr['d_max']:,.0f}" if fr["d_max"] >= 100 else f"{fr['d_max']:.4g}"
+    path = (f"{fr.get('path', 'terrain_path')}(bounds, {nf}), e_max {fr['e_max']:g} {unit} "
+            f"at d_max {d_max} {unit} (refine while e(r) > e_max d(r) / d_max)")
     upd = f"{path}; Front.stats['seconds'] of frames 2..{nf} (incremental)"
     rows = [
         _row("frames: front update, mean", data,
@@ -589,7 +687,7 @@ def frames_chart(fr: dict, s: dict, path: str, label: str) -> str:
     for a in (ax, aa):
         a.grid(True, alpha=0.3)
     fig.suptitle(f"fancloud bench vdfc: fly-through over the {label}, e_max "
-                 f"{fr['e_max']:g} m", fontsize=10)
+                 f"{fr['e_max']:g} {fr.get('unit', 'm')}", fontsize=10)
     fig.savefig(path, dpi=90)
     return path
 
@@ -930,6 +1028,8 @@ def run_vdfc(args, argv: list[str]) -> dict:
         raise ValueError("--n must be at least 16, --frames at least 2, --cameras and "
                          "--samples at least 1, --render-frames not negative and --e-max > 0")
     parts = list(dict.fromkeys(args.part))
+    if args.data in OBJECTS:
+        return run_object(args, argv, parts, n_frames)
     _warm(quiet)
     heights, spacing, origin, data = terrain(side, args.data, args.seed)
     e_max = args.e_max if args.e_max is not None else default_e_max(heights, spacing,
@@ -1052,6 +1152,76 @@ def run_vdfc(args, argv: list[str]) -> dict:
     return res
 
 
+def run_object(args, argv: list[str], parts: list[str], n_frames: int) -> dict:
+    """``bench vdfc`` on a scanned object (a point set): the build and frames parts, the
+    cameras on :func:`orbit_path`. The peers and merges parts measure the screen-space
+    error on a height field's grid: not on an object."""
+    from fancloud_vtk import ViewDependentFanCloud, build_fans
+
+    t_start = time.perf_counter()
+    quiet = args.quiet
+    skipped = [p for p in parts if p not in ("build", "frames")]
+    parts = [p for p in parts if p in ("build", "frames")]
+    if not parts:
+        raise ValueError(f"--data {args.data} is a point set: only the parts build and "
+                         "frames run on it (peers and merges need a height field)")
+    _warm(quiet)
+    points, data = scanned_object(args.data)
+    e_max = args.e_max if args.e_max is not None else object_e_max(points)
+    res = {**header(["vdfc", *argv]),
+           "args": {"part": parts, "data": args.data, "repeat": args.repeat,
+                    "frames": n_frames, "e_max": e_max, "render_frames": args.render_frames,
+                    "seed": args.seed},
+           "data": data, "build": None, "frames": None, "render": None, "peers": None,
+           "merges": None}
+    rows, notes, written = [], [], []
+    if "build" in parts:
+        _log(quiet, f"build: {data}")
+        res["build"] = measure_point_build(points, args.repeat, quiet)
+        rows += point_build_rows(res["build"], data, args.repeat)
+    if "frames" in parts:
+        fc = build_fans(points)
+        vd = ViewDependentFanCloud.build(fc)
+        cams = orbit_path(vd.bounds(), n_frames)
+        d_max = vd.default_d_max(cams[0])
+        _log(quiet, f"frames: {n_frames} cameras round the object, e_max {e_max:g}")
+        fr = run_frames(vd, cams, e_max, d_max, quiet)
+        fr.update(path="orbit_path", unit="units")
+        s = frame_summary(fr, fc.n_points)
+        lean = frame_summary(run_frames(vd, cams, e_max, d_max, quiet, True), fc.n_points)
+        res["frames"] = {**fr, "summary": s, "superfluous": lean}
+        render = None
+        if args.render_frames:
+            try:
+                render = run_render(vd, cams, e_max, d_max, args.render_frames,
+                                    os.path.join(args.out, "frames"))
+            except Exception as exc:  # an offscreen render can fail on a machine without GL
+                render = {"error": f"{type(exc).__name__}: {exc}"}
+            res["render"] = render
+        rows += frame_rows(fr, s, data, render, lean)
+        notes += phase_notes(fr["phases"], n_frames)
+        notes.insert(0, f"e_max {e_max:g} units" + (
+            " (given)" if args.e_max is not None else
+            ": Jacksboro's 20 m in its 43.7 km ground diagonal, as a fraction of the "
+            "object's bounding-box diagonal (the default)"))
+    if skipped:
+        notes.append(f"not run on a point set: {', '.join(skipped)} (the screen-space error "
+                     "is measured on a height field's grid); points under no triangle are "
+                     "not measured on an object either")
+    res["elapsed"] = time.perf_counter() - t_start
+    res["rows"] = rows
+    text = markdown("fancloud bench vdfc: view-dependent fan clouds (paper section 8)", res,
+                    rows, notes)
+    written += write_outputs(args.out, "vdfc", text, res)
+    if res["frames"] is not None:
+        written.append(_frames_csv(res["frames"], os.path.join(args.out, "vdfc_frames.csv")))
+        written.append(frames_chart(res["frames"], res["frames"]["summary"],
+                                    os.path.join(args.out, "vdfc_frames.png"), data))
+    print(text)
+    print("written: " + ", ".join(written))
+    return res
+
+
 def _frames_csv(fr: dict, path: str) -> str:
     with open(path, "w", newline="") as fh:
         w = csv.DictWriter(fh, fieldnames=list(fr["frames"][0]))
@@ -1090,9 +1260,11 @@ def add_parser(sub) -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=None,
                    help=f"cameras of the fly-through (default: {DEFAULT_FRAMES}; --quick: "
                         f"{QUICK_FRAMES})")
-    p.add_argument("--data", choices=TERRAINS, default="jacksboro",
+    p.add_argument("--data", choices=TERRAINS + OBJECTS, default="jacksboro",
                    help="the height field (default: %(default)s; topobathy: matplotlib's "
-                        "other DEM; fractal: a fractional Brownian surface of --seed)")
+                        "other DEM; fractal: a fractional Brownian surface of --seed), or a "
+                        "scanned object as a point set (bunny: the build and frames parts, "
+                        "cameras circling it)")
     p.add_argument("--e-max", type=float, default=None,
                    help=f"the front's e_max in metres at d_max, the range of sight (default: "
                         f"{DEFAULT_E_MAX:g} on Jacksboro, about 3%% of the points active at n = "
