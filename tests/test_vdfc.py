@@ -906,3 +906,20 @@ def test_a_boundary_neighbours_stand_in_stays_on_the_boundary():
     assert VK._representative(pos, child, parent, state, 3, 2, is_open, True) == 0
     is_open[1] = True  # both on the boundary: the nearer again
     assert VK._representative(pos, child, parent, state, 3, 2, is_open, True) == 1
+
+
+def test_folded_front_triangles_are_written_the_way_their_neighbours_run():
+    # the bunny's points: merges leave some fans invalid (Fig. 14) and their triangles
+    # turned; the front writes them the other way round (they showed their backs as dark
+    # specks in a render) and counts them
+    from fancloud_vtk.bench.vdfc import object_e_max, orbit_path, scanned_object
+
+    points, _ = scanned_object("bunny")
+    vd = ViewDependentFanCloud.build(build_fans(points))
+    cam = orbit_path(vd.bounds(), 8)[4]
+    front = vd.front_arrays(cam, object_e_max(points))
+    assert front.stats["folded"] > 0
+    assert not front.folded_triangles().any()
+    again = vd.front_arrays(cam, object_e_max(points), incremental=False)
+    assert again.stats["folded"] == front.stats["folded"]
+    assert np.array_equal(again.triangles, front.triangles)

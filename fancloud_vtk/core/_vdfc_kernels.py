@@ -37,7 +37,7 @@ try:  # the huge-page hint below needs numba's code generation internals
 except ImportError:  # pragma: no cover - other numba versions: no hint
     intrinsic = None
 
-from ._geometry_kernels import min_angle_cos, opposite, tangent
+from ._geometry_kernels import dist2, min_angle_cos, opposite, tangent, triangle_cross
 from ._mesh_kernels import resolve_quads
 
 MERGE_ENTROPY = 0
@@ -1318,6 +1318,18 @@ def _has_pair(mring, moff, v, s, t, closed):
 
 
 @njit(cache=True)
+def _folded(pos, nrm, active, extra, na, i, s, t):
+    """Does the triangle (i, s, t) of front points (``active`` then ``extra``) turn
+    against i's normal, beyond round-off (:meth:`Front.folded_triangles`)?"""
+    p = active[i] if i < na else extra[i - na]
+    a = active[s] if s < na else extra[s - na]
+    b = active[t] if t < na else extra[t - na]
+    cx, cy, cz = triangle_cross(pos, p, a, b)
+    det = cx * nrm[p, 0] + cy * nrm[p, 1] + cz * nrm[p, 2]
+    return det < -1e-9 * np.sqrt(dist2(pos, p, a) * dist2(pos, p, b))
+
+
+@njit(cache=True)
 def _beyond(pos, planes, a, b, c):
     """Do the nodes a, b and c all lie outside one of the frustum's planes?"""
     for k in range(planes.shape[0]):
@@ -1333,8 +1345,8 @@ def _beyond(pos, planes, a, b, c):
 
 
 @njit(cache=True, parallel=True)
-def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, ring, rep,
-                    n_chunks, with_held, planes):
+def front_triangles(pos, nrm, child, parent, state, active, aidx, is_open, ring_off, ring,
+                    rep, n_chunks, with_held, planes):
     """Distinct triangles of the active fans; returns (triangles, held, extra points).
 
     ``aidx[x]`` is x's index in ``active`` (or -1). A fan neighbour that is
@@ -1357,7 +1369,11 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
     near its edge, were under no triangle: docs/vdfc.md). A triangle is
     written once, by the smallest of its points whose fan holds it, in the
     order of the fans; ``held``: how many of its points' fans hold it (1 to
-    3; all 1 unless ``with_held``).
+    3; all 1 unless ``with_held``). A triangle (i, s, t) that turns against
+    i's normal (``nrm``: a fan made invalid by merges, the paper's Figure 14)
+    is written the other way round, (i, t, s), so that it runs as its
+    neighbours do (drawn as it came, it shows its back: dark specks in a
+    render); the last value returned counts them.
 
     The stand-ins and the triangles run in ``n_chunks`` ranges of fans in
     parallel (1: serially; the result is the same): each fan writes only its
@@ -1491,6 +1507,7 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
     tri = np.empty((n, 3), np.int64)
     hold = np.empty(n, np.int64)
     cnt = np.zeros(nf, np.int64)
+    folded = np.zeros(nf, np.int64)
     for ch in prange(n_chunks):
         lo = nf * ch // n_chunks
         hi = nf * (ch + 1) // n_chunks
@@ -1522,6 +1539,10 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
                 tri[c, 0] = i
                 tri[c, 1] = s
                 tri[c, 2] = t
+                if _folded(pos, nrm, active, extra, na, i, s, t):
+                    tri[c, 1] = t  # drawn the way its neighbours run
+                    tri[c, 2] = s
+                    folded[i] += 1
                 h = 1  # the fans that hold it: i's, and the larger points' that do
                 if with_held:
                     if s > i and _has_pair(mring, moff2, s, i, t, closed2):
@@ -1566,7 +1587,7 @@ def front_triangles(pos, child, parent, state, active, aidx, is_open, ring_off, 
                 if v >= 0:
                     out[r, k] = new[v]
         extra = extra[:kept].copy()
-    return out, held, extra
+    return out, held, extra, folded.sum()
 
 
 @njit(cache=True, parallel=True)

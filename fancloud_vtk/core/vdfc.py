@@ -417,7 +417,9 @@ class Front(TriangleMesh):
     bounding spheres meet the frustum, and ``border``, front nodes just
     outside it that the fans of the former reach), ``triangles`` (and
     ``distinct``, the count before superfluous ones were removed: equal
-    unless asked), ``front`` (front nodes, in and out of view), ``visited``
+    unless asked), ``folded`` (triangles that turned against their fan point's
+    normal, written the other way round: :meth:`folded_triangles`), ``front``
+    (front nodes, in and out of view), ``visited``
     (nodes looked at by this update), ``seconds`` (the whole call, from the
     camera to these arrays; of which, besides reading the camera,
     ``seconds_update`` moving the front, ``seconds_triangles`` the active
@@ -437,8 +439,10 @@ class Front(TriangleMesh):
         as drawn (its neighbours, or the active stand-ins of those that are not active),
         counter-clockwise around ``p``'s normal when the fan is valid. A merge can move a
         stand-in across another (the paper's Figure 14: a fan made invalid by a merge);
-        the triangle then turns over. The front draws it as it is (nothing is removed or
-        refined further: docs/vdfc.md); ``fancloud bench vdfc`` counts them.
+        the triangle then turns over. ``front_arrays`` writes such a triangle the other
+        way round, so that it runs as its neighbours do (nothing is removed or refined
+        further: docs/vdfc.md), and counts it in ``stats["folded"]``; on its fronts this
+        method finds none.
         """
         return _turned(self.points, self.normals, self.triangles[:, 0],
                        self.triangles[:, 1], self.triangles[:, 2])
@@ -993,10 +997,10 @@ class ViewDependentFanCloud:
         self._aidx[active] = np.arange(len(active))
         if self._rep is None:  # the ring entries' last stand-ins, kept for the forest's life
             self._rep = self.ring.astype(np.int32 if self.n_nodes < 2**31 else np.int64)
-        tri, held, extra = VK.front_triangles(self.positions, self.children, self.parent,
-                                              self._state, active, self._aidx, self.open,
-                                              self.ring_offsets, self.ring, self._rep, chunks,
-                                              superfluous, planes)
+        tri, held, extra, n_folded = VK.front_triangles(
+            self.positions, self.normals, self.children, self.parent, self._state, active,
+            self._aidx, self.open, self.ring_offsets, self.ring, self._rep, chunks,
+            superfluous, planes)
         t2 = time.perf_counter()
         n_view = len(active)
         ids, points, normals, level, error = VK.front_points(
@@ -1015,7 +1019,8 @@ class ViewDependentFanCloud:
             pdata[self.color_name or "RGB"] = c
         seconds = time.perf_counter() - t0
         stats = {"active": len(ids), "in_view": n_view, "border": len(extra),
-                 "triangles": len(tri), "distinct": n_distinct, "front": len(front),
+                 "triangles": len(tri), "distinct": n_distinct, "folded": int(n_folded),
+                 "front": len(front),
                  "visited": int(visited), "seconds": seconds,
                  "triangles_per_point": len(tri) / len(ids) if len(ids) else 0.0,
                  "seconds_update": t1 - tu, "seconds_triangles": t2 - t1,
