@@ -241,24 +241,12 @@ def orbit_path(bounds, n_frames: int, *, distance: float = 1.2, turns: float = 1
 def measure_point_build(points, repeat: int, quiet: bool) -> dict:
     """Best times of build_fans(points) and of the forest of its fan cloud in point blocks
     (:func:`~fancloud_vtk.point_blocks`, one per ``POINTS_PER_BLOCK`` points)."""
-    from fancloud_vtk import ViewDependentFanCloud, build_fans, point_blocks
-
     n_blocks = max(1, len(points) // POINTS_PER_BLOCK)
     fans, forest = [], []
-
-    def point_forest(pfc):
-        if n_blocks == 1:
-            return ViewDependentFanCloud.build(pfc)
-        return ViewDependentFanCloud.build(pfc, blocks=point_blocks(pfc, n_blocks))
-
     for i in range(repeat):
         _log(quiet, f"  build: run {i + 1} of {repeat}")
         gc.collect()
-        t0 = time.perf_counter()
-        pfc = build_fans(points)
-        fans.append(time.perf_counter() - t0)
-        forest.append(timed(point_forest, pfc))
-        del pfc
+        _time_point_set(points, n_blocks, fans, forest)
     return {"n": len(points), "blocks": n_blocks, "build_fans_times": fans,
             "forest_times": forest, "build_fans": min(fans), "forest": min(forest),
             "ratio": min(forest) / min(fans)}
@@ -318,7 +306,7 @@ def _warm(quiet: bool) -> None:
 def measure_build(fc, shape, repeat: int, quiet: bool, block: int | None = None) -> dict:
     """Best times of build_fans(points) and of the forest: without blocks, with blocks of
     ``block`` cells a side (default: an eighth of the grid's side), and with 2 x 2 blocks."""
-    from fancloud_vtk import ViewDependentFanCloud, build_fans, point_blocks, terrain_blocks
+    from fancloud_vtk import ViewDependentFanCloud, build_fans, terrain_blocks
 
     side = shape[0]
     block = block or max(1, side // 8)
@@ -329,10 +317,6 @@ def measure_build(fc, shape, repeat: int, quiet: bool, block: int | None = None)
     # from point_blocks (as many as the terrain's)
     points = fc.points[np.random.default_rng(0).permutation(fc.n_points)]
     p_fans, p_blocked = [], []
-
-    def point_forest(pfc):
-        return ViewDependentFanCloud.build(pfc, blocks=point_blocks(pfc, len(blocks)))
-
     for i in range(repeat):
         _log(quiet, f"  build: run {i + 1} of {repeat}")
         fans.append(timed(build_fans, fc.points))
@@ -340,11 +324,7 @@ def measure_build(fc, shape, repeat: int, quiet: bool, block: int | None = None)
         blocked.append(timed(ViewDependentFanCloud.build, fc, blocks=blocks))
         halved.append(timed(ViewDependentFanCloud.build, fc, blocks=halves))
         gc.collect()
-        t0 = time.perf_counter()
-        pfc = build_fans(points)
-        p_fans.append(time.perf_counter() - t0)
-        p_blocked.append(timed(point_forest, pfc))
-        del pfc
+        _time_point_set(points, len(blocks), p_fans, p_blocked)
     return {"n": fc.n_points, "blocks": len(blocks), "block_shape": [block, block],
             "half_blocks": len(halves), "half_block_shape": [side // 2, shape[1] // 2],
             "build_fans_times": fans, "forest_times": plain, "forest_blocks_times": blocked,
@@ -356,6 +336,22 @@ def measure_build(fc, shape, repeat: int, quiet: bool, block: int | None = None)
             "point_fans_times": p_fans, "point_forest_times": p_blocked,
             "point_fans": min(p_fans), "point_forest": min(p_blocked),
             "ratio_points": min(p_blocked) / min(p_fans)}
+
+
+def _time_point_set(points, n_blocks: int, fans: list, forest: list) -> None:
+    """One run: ``build_fans(points)`` and the forest of its fan cloud in ``n_blocks`` point
+    blocks (no blocks for 1), their times appended to ``fans`` and ``forest``."""
+    from fancloud_vtk import ViewDependentFanCloud, build_fans, point_blocks
+
+    def point_forest(pfc):
+        if n_blocks == 1:
+            return ViewDependentFanCloud.build(pfc)
+        return ViewDependentFanCloud.build(pfc, blocks=point_blocks(pfc, n_blocks))
+
+    t0 = time.perf_counter()
+    pfc = build_fans(points)
+    fans.append(time.perf_counter() - t0)
+    forest.append(timed(point_forest, pfc))
 
 
 def build_rows(b: dict, data: str, repeat: int) -> list[dict]:

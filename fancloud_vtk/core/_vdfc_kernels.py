@@ -1318,6 +1318,30 @@ def _has_pair(mring, moff, v, s, t, closed):
 
 
 @njit(cache=True)
+def _number_new(mring, q0, q1, aidx, extra, ne, na):
+    """Number the stand-ins not yet points in ``mring[q0:q1]`` (written ``-2 - node``):
+    each new one becomes extra ``ne`` (point ``na + ne``, its ``aidx`` set), in the order
+    of first use. Returns (extra, ne): ``extra`` grown when full."""
+    for q in range(q0, q1):
+        v = mring[q]
+        if v < -1:
+            y = -2 - v
+            v = aidx[y]
+            if v < 0:
+                if ne >= extra.shape[0]:
+                    bigger = np.empty(2 * extra.shape[0], np.int64)
+                    for e in range(ne):
+                        bigger[e] = extra[e]
+                    extra = bigger
+                extra[ne] = y
+                v = na + ne
+                aidx[y] = v
+                ne += 1
+            mring[q] = v
+    return extra, ne
+
+
+@njit(cache=True)
 def _folded(pos, nrm, active, extra, na, i, s, t):
     """Does the triangle (i, s, t) of front points (``active`` then ``extra``) turn
     against i's normal, beyond round-off (:meth:`Front.folded_triangles`)?"""
@@ -1418,24 +1442,8 @@ def front_triangles(pos, nrm, child, parent, state, active, aidx, is_open, ring_
     extra = np.empty(64, np.int64)
     ne = 0
     for i in range(na):  # numbered in the order of first use, as a serial pass would
-        if not pending[i]:
-            continue
-        for q in range(moff[i], moff[i + 1]):
-            v = mring[q]
-            if v < -1:
-                y = -2 - v
-                v = aidx[y]
-                if v < 0:
-                    if ne >= extra.shape[0]:
-                        bigger = np.empty(2 * extra.shape[0], np.int64)
-                        for e in range(ne):
-                            bigger[e] = extra[e]
-                        extra = bigger
-                    extra[ne] = y
-                    v = na + ne
-                    aidx[y] = v
-                    ne += 1
-                mring[q] = v
+        if pending[i]:
+            extra, ne = _number_new(mring, moff[i], moff[i + 1], aidx, extra, ne, na)
     # the extras' fans too (their stand-ins as above; a new one, a front node beyond the
     # view that no fan in view reaches, is numbered after them and draws no fan): they
     # draw their triangles but those wholly beyond the view (below), so that the view's
@@ -1471,22 +1479,7 @@ def front_triangles(pos, nrm, child, parent, state, active, aidx, is_open, ring_
                 else:
                     v = aidx[z]
                     mring[b + j] = v if v >= 0 else -2 - z
-    for q in range(moff2[na], n2):  # numbered in the order of first use
-        v = mring[q]
-        if v < -1:
-            y = -2 - v
-            v = aidx[y]
-            if v < 0:
-                if ne >= extra.shape[0]:
-                    bigger = np.empty(2 * extra.shape[0], np.int64)
-                    for e in range(ne):
-                        bigger[e] = extra[e]
-                    extra = bigger
-                extra[ne] = y
-                v = na + ne
-                aidx[y] = v
-                ne += 1
-            mring[q] = v
+    extra, ne = _number_new(mring, moff2[na], n2, aidx, extra, ne, na)
     ex = np.empty(ne, np.int64)
     for e in range(ne):
         ex[e] = extra[e]
