@@ -689,13 +689,18 @@ def frames_chart(fr: dict, s: dict, path: str, label: str) -> str:
 
 
 def run_render(vd, cams, e_max: float, d_max: float, count: int, out_dir: str) -> dict:
-    """``flythrough`` on ``count`` cameras spread over the path, PNG frames in ``out_dir``."""
+    """``flythrough`` on ``count`` cameras spread over the path, PNG frames in ``out_dir``;
+    ``{"error": ...}`` if the offscreen render fails (a machine without GL)."""
     from fancloud_vtk.algorithms.vdfc import flythrough
 
     idx = np.unique(np.round(np.linspace(0, len(cams) - 1, count)).astype(int))
     sub = [cams[i] for i in idx]
-    rows = flythrough(vd, sub, e_max, out_dir, d_max=d_max, size=RENDER_SIZE)
-    vd.reset_front()
+    try:
+        rows = flythrough(vd, sub, e_max, out_dir, d_max=d_max, size=RENDER_SIZE)
+    except Exception as exc:  # an offscreen render can fail on a machine without GL
+        return {"error": f"{type(exc).__name__}: {exc}"}
+    finally:
+        vd.reset_front()
     return {"rows": rows, "path_frames": idx.tolist(), "size": list(RENDER_SIZE),
             "dir": out_dir}
 
@@ -1072,11 +1077,8 @@ def run_vdfc(args, argv: list[str]) -> dict:
     if "frames" in parts:
         if args.render_frames:
             _log(quiet, f"render: flythrough of {args.render_frames} frames")
-            try:
-                render = run_render(vd, cams, e_max, d_max, args.render_frames,
-                                    os.path.join(args.out, "frames"))
-            except Exception as exc:  # an offscreen render can fail on a machine without GL
-                render = {"error": f"{type(exc).__name__}: {exc}"}
+            render = run_render(vd, cams, e_max, d_max, args.render_frames,
+                                os.path.join(args.out, "frames"))
             res["render"] = render
         rows += frame_rows(fr, s, data, render, res["frames"].get("superfluous"),
                            res["frames"].get("serial"))
@@ -1188,11 +1190,8 @@ def run_object(args, argv: list[str], parts: list[str], n_frames: int) -> dict:
         res["frames"] = {**fr, "summary": s, "superfluous": lean}
         render = None
         if args.render_frames:
-            try:
-                render = run_render(vd, cams, e_max, d_max, args.render_frames,
-                                    os.path.join(args.out, "frames"))
-            except Exception as exc:  # an offscreen render can fail on a machine without GL
-                render = {"error": f"{type(exc).__name__}: {exc}"}
+            render = run_render(vd, cams, e_max, d_max, args.render_frames,
+                                os.path.join(args.out, "frames"))
             res["render"] = render
         rows += frame_rows(fr, s, data, render, lean)
         notes += phase_notes(fr["phases"], n_frames)

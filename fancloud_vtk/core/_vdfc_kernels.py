@@ -1318,6 +1318,20 @@ def _has_pair(mring, moff, v, s, t, closed):
 
 
 @njit(cache=True)
+def _stand_in(pos, child, parent, state, is_open, ring, rep, x, s0, j, k):
+    """The stand-in of entry j of the k of front node x's ring (from ``s0``): the one
+    ``rep`` remembers while it is a front node, else found again (and remembered); -1
+    for none. The ends of an open fan's ring are its neighbours along the boundary."""
+    y = rep[s0 + j]
+    if state[y] != FRONT:
+        y = _representative(pos, child, parent, state, x, ring[s0 + j], is_open,
+                            is_open[x] and (j == 0 or j == k - 1))
+        if y >= 0:
+            rep[s0 + j] = y
+    return y
+
+
+@njit(cache=True)
 def _number_new(mring, q0, q1, aidx, extra, ne, na):
     """Number the stand-ins not yet points in ``mring[q0:q1]`` (written ``-2 - node``):
     each new one becomes extra ``ne`` (point ``na + ne``, its ``aidx`` set), in the order
@@ -1425,12 +1439,7 @@ def front_triangles(pos, nrm, child, parent, state, active, aidx, is_open, ring_
             s0 = ring_off[x]
             k = moff[i + 1] - moff[i]
             for j in range(k):
-                y = rep[s0 + j]
-                if state[y] != FRONT:
-                    y = _representative(pos, child, parent, state, x, ring[s0 + j], is_open,
-                                        is_open[x] and (j == 0 or j == k - 1))
-                    if y >= 0:
-                        rep[s0 + j] = y
+                y = _stand_in(pos, child, parent, state, is_open, ring, rep, x, s0, j, k)
                 if y < 0:
                     mring[moff[i] + j] = -1
                 else:
@@ -1468,12 +1477,7 @@ def front_triangles(pos, nrm, child, parent, state, active, aidx, is_open, ring_
             b = moff2[na + e]
             k = moff2[na + e + 1] - b
             for j in range(k):
-                z = rep[s0 + j]
-                if state[z] != FRONT:
-                    z = _representative(pos, child, parent, state, y, ring[s0 + j], is_open,
-                                        is_open[y] and (j == 0 or j == k - 1))
-                    if z >= 0:
-                        rep[s0 + j] = z
+                z = _stand_in(pos, child, parent, state, is_open, ring, rep, y, s0, j, k)
                 if z < 0:
                     mring[b + j] = -1
                 else:
